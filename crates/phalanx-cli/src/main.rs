@@ -1,0 +1,2 @@
+//! The `phalanx` command-line tool.
+fn main() {}

@@ -1,0 +1,264 @@
+//! A problem instance: a grid, a start and a goal per agent. The desired formation is the
+//! goals' layout.
+
+use thiserror::Error;
+
+use crate::{Cell, Grid};
+
+/// A validated problem: agent `i` starts at `starts[i]` and must reach `goals[i]`.
+///
+/// **Invariant** (checked by [`Instance::new`]): at least one agent, at most `u16::MAX`; as
+/// many goals as starts; every start and goal inside the grid and free; starts pairwise
+/// distinct, goals pairwise distinct; every goal reachable from its agent's start.
+#[derive(Clone, PartialEq, Eq, Debug)]
+pub struct Instance {
+    grid: Grid,
+    starts: Vec<Cell>,
+    goals: Vec<Cell>,
+}
+
+/// Why a grid, starts and goals do not make an instance. Agent indices are 0-based.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum InstanceError {
+    /// No agents at all.
+    #[error("the instance has no agents")]
+    NoAgents,
+    /// More agents than an `AgentId` can name.
+    #[error("too many agents: {0} (at most 65535)")]
+    TooManyAgents(usize),
+    /// Starts and goals differ in number.
+    #[error("{starts} starts but {goals} goals")]
+    CountMismatch {
+        /// Number of starts.
+        starts: usize,
+        /// Number of goals.
+        goals: usize,
+    },
+    /// A start or goal lies outside the grid.
+    #[error("agent {agent}'s {what} {cell} is outside the {width}x{height} map")]
+    Outside {
+        /// The agent.
+        agent: usize,
+        /// `"start"` or `"goal"`.
+        what: &'static str,
+        /// The offending cell.
+        cell: Cell,
+        /// Grid width.
+        width: u32,
+        /// Grid height.
+        height: u32,
+    },
+    /// A start or goal is on an obstacle.
+    #[error("agent {agent}'s {what} {cell} is on an obstacle")]
+    Blocked {
+        /// The agent.
+        agent: usize,
+        /// `"start"` or `"goal"`.
+        what: &'static str,
+        /// The offending cell.
+        cell: Cell,
+    },
+    /// Two agents share a start or a goal.
+    #[error("agents {first} and {agent} have the same {what} {cell}")]
+    Duplicate {
+        /// The later agent.
+        agent: usize,
+        /// The earlier agent with the same cell.
+        first: usize,
+        /// `"start"` or `"goal"`.
+        what: &'static str,
+        /// The shared cell.
+        cell: Cell,
+    },
+    /// A goal cannot be reached from its agent's start.
+    #[error("agent {agent}'s goal {goal} cannot be reached from its start {start}")]
+    Unreachable {
+        /// The agent.
+        agent: usize,
+        /// Its start.
+        start: Cell,
+        /// Its goal.
+        goal: Cell,
+    },
+}
+
+impl InstanceError {
+    /// The agent the error is about, if it is about one.
+    pub fn agent(&self) -> Option<usize> {
+        match *self {
+            InstanceError::Outside { agent, .. }
+            | InstanceError::Blocked { agent, .. }
+            | InstanceError::Duplicate { agent, .. }
+            | InstanceError::Unreachable { agent, .. } => Some(agent),
+            _ => None,
+        }
+    }
+}
+
+impl Instance {
+    /// Checks the invariant and builds the instance.
+    pub fn new(grid: Grid, starts: Vec<Cell>, goals: Vec<Cell>) -> Result<Instance, InstanceError> {
+        if starts.len() != goals.len() {
+            return Err(InstanceError::CountMismatch { starts: starts.len(), goals: goals.len() });
+        }
+        if starts.is_empty() {
+            return Err(InstanceError::NoAgents);
+        }
+        if starts.len() > usize::from(u16::MAX) {
+            return Err(InstanceError::TooManyAgents(starts.len()));
+        }
+        for (what, cells) in [("start", &starts), ("goal", &goals)] {
+            let mut seen = cell_set::CellMap::new(&grid);
+            for (agent, &cell) in cells.iter().enumerate() {
+                if !grid.in_bounds(cell) {
+                    let (width, height) = (grid.width(), grid.height());
+                    return Err(InstanceError::Outside { agent, what, cell, width, height });
+                }
+                if grid.is_blocked(cell) {
+                    return Err(InstanceError::Blocked { agent, what, cell });
+                }
+                if let Some(first) = seen.insert(&grid, cell, agent) {
+                    return Err(InstanceError::Duplicate { agent, first, what, cell });
+                }
+            }
+        }
+        let components = components(&grid, &goals);
+        for (agent, (&start, &goal)) in starts.iter().zip(&goals).enumerate() {
+            if components[grid.id(start).index()] != components[grid.id(goal).index()] {
+                return Err(InstanceError::Unreachable { agent, start, goal });
+            }
+        }
+        Ok(Instance { grid, starts, goals })
+    }
+
+    /// The static map.
+    #[inline]
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// Start cells, one per agent.
+    #[inline]
+    pub fn starts(&self) -> &[Cell] {
+        &self.starts
+    }
+
+    /// Goal cells, one per agent; their layout is the desired formation.
+    #[inline]
+    pub fn goals(&self) -> &[Cell] {
+        &self.goals
+    }
+
+    /// Number of agents.
+    #[inline]
+    pub fn n_agents(&self) -> usize {
+        self.starts.len()
+    }
+
+    /// The desired formation: the goals shifted so that their bounding box starts at `(0, 0)`.
+    pub fn formation(&self) -> Vec<Cell> {
+        let min_x = self.goals.iter().map(|c| c.x).min().unwrap_or(0);
+        let min_y = self.goals.iter().map(|c| c.y).min().unwrap_or(0);
+        self.goals.iter().map(|c| c.offset(-min_x, -min_y)).collect()
+    }
+
+    /// Takes the instance apart.
+    pub fn into_parts(self) -> (Grid, Vec<Cell>, Vec<Cell>) {
+        (self.grid, self.starts, self.goals)
+    }
+}
+
+/// Labels the connected free regions that contain a goal (one BFS per unlabelled goal);
+/// cells in no such region keep label 0.
+fn components(grid: &Grid, goals: &[Cell]) -> Vec<u32> {
+    let mut label = vec![0u32; grid.n_cells()];
+    let mut queue = Vec::new();
+    let mut next = 0;
+    for &goal in goals {
+        let gid = grid.id(goal).index();
+        if label[gid] != 0 {
+            continue;
+        }
+        next += 1;
+        label[gid] = next;
+        queue.clear();
+        queue.push(goal);
+        while let Some(cell) = queue.pop() {
+            for n in grid.free_neighbours(cell) {
+                let nid = grid.id(n).index();
+                if label[nid] == 0 {
+                    label[nid] = next;
+                    queue.push(n);
+                }
+            }
+        }
+    }
+    label
+}
+
+/// A sparse cell → agent map for duplicate checks without hashing.
+mod cell_set {
+    use crate::{Cell, Grid};
+
+    pub(super) struct CellMap {
+        sorted: Vec<(u32, usize)>,
+    }
+
+    impl CellMap {
+        pub(super) fn new(_grid: &Grid) -> CellMap {
+            CellMap { sorted: Vec::new() }
+        }
+
+        /// Inserts `cell → agent`; returns the agent already there, if any.
+        pub(super) fn insert(&mut self, grid: &Grid, cell: Cell, agent: usize) -> Option<usize> {
+            let id = grid.id(cell).0;
+            match self.sorted.binary_search_by_key(&id, |&(c, _)| c) {
+                Ok(pos) => Some(self.sorted[pos].1),
+                Err(pos) => {
+                    self.sorted.insert(pos, (id, agent));
+                    None
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn c(x: i32, y: i32) -> Cell {
+        Cell::new(x, y)
+    }
+
+    #[test]
+    fn every_invariant_is_checked() {
+        let grid = Grid::from_fn(4, 3, |c| c.x == 2 && c.y > 0 || c == Cell::new(3, 0));
+        let new = |s: Vec<Cell>, g: Vec<Cell>| Instance::new(grid.clone(), s, g);
+        assert_eq!(new(vec![], vec![]), Err(InstanceError::NoAgents));
+        assert!(matches!(new(vec![c(0, 0)], vec![]), Err(InstanceError::CountMismatch { .. })));
+        assert!(matches!(
+            new(vec![c(4, 0)], vec![c(0, 0)]),
+            Err(InstanceError::Outside { agent: 0, what: "start", .. })
+        ));
+        assert!(matches!(
+            new(vec![c(0, 0)], vec![c(2, 1)]),
+            Err(InstanceError::Blocked { what: "goal", .. })
+        ));
+        assert!(matches!(
+            new(vec![c(0, 0), c(0, 0)], vec![c(1, 0), c(1, 1)]),
+            Err(InstanceError::Duplicate { agent: 1, first: 0, what: "start", .. })
+        ));
+        assert!(matches!(
+            new(vec![c(0, 0), c(0, 1)], vec![c(1, 0), c(1, 0)]),
+            Err(InstanceError::Duplicate { what: "goal", .. })
+        ));
+        assert!(matches!(
+            new(vec![c(0, 0)], vec![c(3, 2)]),
+            Err(InstanceError::Unreachable { .. })
+        ));
+        let ok = new(vec![c(0, 0), c(1, 2)], vec![c(1, 0), c(0, 2)]).unwrap();
+        assert_eq!(ok.n_agents(), 2);
+        assert_eq!(ok.formation(), vec![c(1, 0), c(0, 2)]);
+    }
+}
