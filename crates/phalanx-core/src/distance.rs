@@ -32,7 +32,7 @@ impl DistanceMap {
             source,
             dist: vec![Self::UNREACHABLE; grid.n_cells()],
         };
-        let mut queue = Vec::with_capacity(grid.n_cells().min(1 << 16));
+        let mut queue = Vec::with_capacity(grid.n_cells() - grid.n_blocked());
         res.fill(grid, &mut queue);
         res
     }
@@ -49,42 +49,49 @@ impl DistanceMap {
         self.fill(grid, queue);
     }
 
+    /// BFS over `self.dist`, which holds `UNREACHABLE` everywhere on entry. Blocked cells
+    /// are first marked `BLOCKED` so that the inner loop tests one value per neighbour, then
+    /// set back to `UNREACHABLE`. The queue holds packed coordinates `(y << 16) | x`, which
+    /// spares a division per cell.
     fn fill(&mut self, grid: &Grid, queue: &mut Vec<u32>) {
+        const BLOCKED: u32 = DistanceMap::UNREACHABLE - 1;
         queue.clear();
         if grid.is_blocked(self.source) {
             return;
         }
-        let width = self.width;
-        let last_row = (self.height - 1) * width;
-        let src = grid.id(self.source).0;
-        self.dist[src as usize] = 0;
-        queue.push(src);
+        for_each_blocked(grid, |id| self.dist[id] = BLOCKED);
+        let (width, height) = (self.width as usize, self.height as usize);
+        let dist = &mut self.dist[..width * height];
+        let src = self.source;
+        dist[src.y as usize * width + src.x as usize] = 0;
+        queue.push((src.y as u32) << 16 | src.x as u32);
         let mut head = 0;
         while head < queue.len() {
-            let id = queue[head];
+            let packed = queue[head];
             head += 1;
-            let next = self.dist[id as usize] + 1;
-            let x = id % width;
-            let mut visit = |n: u32| {
-                let slot = &mut self.dist[n as usize];
-                if *slot == Self::UNREACHABLE && !grid.is_blocked_id(CellId(n)) {
-                    *slot = next;
-                    queue.push(n);
+            let (x, y) = ((packed & 0xffff) as usize, (packed >> 16) as usize);
+            let id = y * width + x;
+            let next = dist[id] + 1;
+            let mut visit = |n: usize, packed: u32| {
+                if dist[n] == DistanceMap::UNREACHABLE {
+                    dist[n] = next;
+                    queue.push(packed);
                 }
             };
-            if id < last_row {
-                visit(id + width);
+            if y + 1 < height {
+                visit(id + width, packed + (1 << 16));
             }
-            if id >= width {
-                visit(id - width);
+            if y > 0 {
+                visit(id - width, packed - (1 << 16));
             }
             if x > 0 {
-                visit(id - 1);
+                visit(id - 1, packed - 1);
             }
             if x + 1 < width {
-                visit(id + 1);
+                visit(id + 1, packed + 1);
             }
         }
+        for_each_blocked(grid, |id| self.dist[id] = DistanceMap::UNREACHABLE);
     }
 
     /// The source cell (for a goal's map, the goal).
@@ -120,6 +127,23 @@ impl DistanceMap {
 impl std::fmt::Debug for DistanceMap {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "DistanceMap {}x{} from {}", self.width, self.height, self.source)
+    }
+}
+
+/// Calls `f` with the id of every blocked cell, skipping free 64-cell words at once.
+fn for_each_blocked(grid: &Grid, mut f: impl FnMut(usize)) {
+    let n_cells = grid.n_cells();
+    let mut base = 0;
+    while base < n_cells {
+        let mut word = grid.blocked_word(base / 64);
+        while word != 0 {
+            let id = base + word.trailing_zeros() as usize;
+            if id < n_cells {
+                f(id);
+            }
+            word &= word - 1;
+        }
+        base += 64;
     }
 }
 

@@ -110,6 +110,13 @@ impl Grid {
         self.blocked[i >> 6] >> (i & 63) & 1 != 0
     }
 
+    /// The 64 obstacle bits of cells `64 * word .. 64 * word + 64` (bit `i` is cell id
+    /// `64 * word + i`; bits past the last cell are 0).
+    #[inline]
+    pub fn blocked_word(&self, word: usize) -> u64 {
+        self.blocked[word]
+    }
+
     /// Whether `cell` is blocked; every cell outside the grid is.
     #[inline]
     pub fn is_blocked(&self, cell: Cell) -> bool {
