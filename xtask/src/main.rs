@@ -1,0 +1,117 @@
+//! `cargo xtask`: the project's automation in Rust (no shell scripts).
+//!
+//! - `cargo xtask tidy`: every `.rs` file starts with a `//!` paragraph, no trailing
+//!   whitespace, no `#[should_panic]`, no `#[ignore]`.
+//! - `cargo xtask deps`: the dependency invariants of ARCHITECTURE.md (no burn below the
+//!   learning crates).
+//! - `cargo xtask demo`: the README's main job, end to end on generated data.
+
+#![allow(clippy::print_stdout, clippy::print_stderr, reason = "a command-line tool")]
+
+use std::path::Path;
+use std::process::{Command, ExitCode};
+
+use anyhow::{Context, bail};
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let res = match args.first().map(String::as_str) {
+        Some("tidy") => xtask::tidy(&xtask::workspace_root()).map(|problems| {
+            for p in &problems {
+                eprintln!("{p}");
+            }
+            problems.is_empty()
+        }).map_err(anyhow::Error::from),
+        Some("deps") => deps().map(|()| true),
+        Some("demo") => demo().map(|()| true),
+        _ => {
+            eprintln!("usage: cargo xtask tidy|deps|demo");
+            return ExitCode::from(2);
+        }
+    };
+    match res {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::FAILURE,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Crates that must never depend on burn (ARCHITECTURE.md, invariant 1).
+const BURN_FREE: &[&str] = &["phalanx-core", "phalanx-io", "phalanx-gen", "phalanx-env", "phalanx-plan"];
+
+fn deps() -> anyhow::Result<()> {
+    let root = xtask::workspace_root();
+    for krate in BURN_FREE {
+        if !root.join("crates").join(krate).exists() {
+            continue;
+        }
+        let out = Command::new(env!("CARGO"))
+            .args(["tree", "--quiet", "--edges", "normal", "-p", krate, "--prefix", "none"])
+            .current_dir(&root)
+            .output()
+            .with_context(|| format!("running cargo tree for {krate}"))?;
+        if !out.status.success() {
+            bail!("cargo tree -p {krate} failed: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        let tree = String::from_utf8_lossy(&out.stdout);
+        if let Some(line) = tree.lines().find(|l| l.starts_with("burn")) {
+            bail!("{krate} depends on burn ({line}); only the learning crates may");
+        }
+    }
+    println!("dependency invariants hold");
+    Ok(())
+}
+
+/// Generates an instance, inspects it, solves it with CBS and SWARM-MAPF, validates the
+/// plans and runs the simulator, all under `out/demo/`.
+fn demo() -> anyhow::Result<()> {
+    let root = xtask::workspace_root();
+    let status = Command::new(env!("CARGO"))
+        .args(["build", "--release", "--quiet", "-p", "phalanx-cli"])
+        .current_dir(&root)
+        .status()
+        .context("building phalanx")?;
+    if !status.success() {
+        bail!("building phalanx failed");
+    }
+    let bin = root.join("target/release/phalanx");
+    let out = root.join("out/demo");
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let instance = out.join("instance.yaml");
+    let steps: Vec<Vec<String>> = demo_steps(&instance, &out);
+    for args in steps {
+        println!("$ phalanx {}", args.join(" "));
+        let status = Command::new(&bin).args(&args).current_dir(&root).status()?;
+        if !status.success() {
+            bail!("phalanx {} failed with {status}", args.join(" "));
+        }
+        println!();
+    }
+    Ok(())
+}
+
+fn demo_steps(instance: &Path, out: &Path) -> Vec<Vec<String>> {
+    let s = |p: &Path| p.display().to_string();
+    let mut steps = vec![
+        vec!["gen", "--size", "32", "--density", "0.15", "--agents", "3", "--seed", "1", "-o", &s(instance)],
+        vec!["info", &s(instance)],
+    ]
+    .into_iter()
+    .map(|v| v.into_iter().map(String::from).collect::<Vec<_>>())
+    .collect::<Vec<_>>();
+    let has = |sub: &str| xtask::workspace_root().join("crates/phalanx-cli/src").join(format!("{sub}.rs")).exists();
+    if has("solve") {
+        for planner in ["cbs", "swarm"] {
+            let plan = out.join(format!("plan-{planner}.yaml"));
+            steps.push(vec!["solve".into(), s(instance), "--planner".into(), planner.into(), "-o".into(), s(&plan)]);
+            steps.push(vec!["validate".into(), s(instance), s(&plan)]);
+        }
+    }
+    if has("sim") {
+        steps.push(vec!["sim".into(), s(instance), "--policy".into(), "greedy".into()]);
+    }
+    steps
+}
