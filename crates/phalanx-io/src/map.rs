@@ -49,8 +49,14 @@ pub struct MovingAiMap {
 }
 
 /// The lines of a text, 1-based numbers, a trailing `\r` removed.
+/// A final line ending does not start another line.
 pub(crate) fn numbered_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l)).enumerate().map(|(i, l)| (i + 1, l))
+    text.strip_suffix('\n')
+        .unwrap_or(text)
+        .split('\n')
+        .map(|l| l.strip_suffix('\r').unwrap_or(l))
+        .enumerate()
+        .map(|(i, l)| (i + 1, l))
 }
 
 impl MovingAiMap {
@@ -110,7 +116,7 @@ impl MovingAiMap {
         for row in 0..height {
             let Some((line, content)) = lines.next() else {
                 let kind = ParseErrorKind::MissingRows { found: row as usize, expected: height };
-                return Err(ParseError::new(last_line, kind));
+                return Err(ParseError::new(last_line + 1, kind));
             };
             last_line = line;
             check_row(content, width).map_err(|kind| ParseError::new(line, kind))?;
