@@ -111,7 +111,8 @@ impl MovingAiMap {
             return Err(ParseError::new(map_line, ParseErrorKind::BadSize { width, height }));
         }
         let (width, height) = (width as u32, height as u32);
-        let mut terrain = Vec::with_capacity(width as usize * height as usize);
+        // A header alone must not reserve gigabytes: the rows are in the text.
+        let mut terrain = Vec::with_capacity((width as usize * height as usize).min(text.len()));
         last_line = map_line;
         for row in 0..height {
             let Some((line, content)) = lines.next() else {
