@@ -91,8 +91,8 @@ pub struct ScheduleEntry {
     pub line: usize,
 }
 
+/// Unknown keys are ignored (other tools add metadata).
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
 struct InstanceDto {
     map: MapDto,
     agents: Vec<AgentDto>,
@@ -303,6 +303,7 @@ impl YamlPlan {
             schedule: serde_yaml::Mapping,
         }
         let dto: PlanDto = from_yaml(text)?;
+        let schedule_line = key_lines(text, "schedule").first().copied().unwrap_or(1);
         let mut schedule = Vec::with_capacity(dto.schedule.len());
         for (key, value) in dto.schedule {
             let key = strip_tags(key);
@@ -310,13 +311,16 @@ impl YamlPlan {
                 Value::String(s) => s.clone(),
                 Value::Number(n) => n.to_string(),
                 other => {
-                    let line = key_lines(text, "schedule").first().copied().unwrap_or(1);
+                    let line = schedule_line;
                     let kind =
                         ParseErrorKind::Yaml(format!("schedule key is not a name: {other:?}"));
                     return Err(ParseError::new(line, kind));
                 }
             };
-            let line = key_lines(text, &name).first().copied().unwrap_or(1);
+            let line = key_lines(text, &name)
+                .into_iter()
+                .find(|&l| l > schedule_line)
+                .unwrap_or(schedule_line);
             let steps: Vec<StepDto> = serde_yaml::from_value(strip_tags(value)).map_err(|err| {
                 let message = format!("path of agent '{name}': {err}");
                 ParseError::new(line, ParseErrorKind::Yaml(message))

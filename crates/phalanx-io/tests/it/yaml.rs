@@ -87,3 +87,12 @@ fn plan_without_statistics() {
     assert_eq!(plan.statistics, None);
     assert_eq!(plan.to_plan(&["agent0".to_owned()]).unwrap().at(0), &[c(1, 2)]);
 }
+
+#[test]
+fn schedule_keys_that_look_like_statistics() {
+    let text = "statistics:\n  cost: 1\nschedule:\n  cost:\n    - {x: 0, y: 0, t: 0}\n  bad: []\n";
+    let err = YamlPlan::parse(text).unwrap_err();
+    assert_eq!(err.to_string(), "line 6: agent 'bad' has an empty path");
+    let ok = "statistics:\n  cost: 1\nschedule:\n  cost:\n    - {x: 0, y: 0, t: 0}\n";
+    assert_eq!(YamlPlan::parse(ok).unwrap().schedule[0].line, 4);
+}
