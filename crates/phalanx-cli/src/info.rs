@@ -13,7 +13,7 @@ use crate::util;
 pub(crate) struct Args {
     /// Instance file: .yaml/.yml or .scen.
     instance: PathBuf,
-    /// For a .scen: use only the first N entries (default all).
+    /// Use only the first N agents (default all).
     #[arg(long, value_name = "N")]
     agents: Option<usize>,
 }

@@ -17,7 +17,7 @@ pub(crate) struct Args {
     instance: PathBuf,
     /// Plan file (libMultiRobotPlanning schedule YAML).
     plan: PathBuf,
-    /// For a .scen: use only the first N entries (default all).
+    /// Use only the first N agents (default all).
     #[arg(long, value_name = "N")]
     agents: Option<usize>,
     /// Print one JSON object instead of a table.

@@ -112,8 +112,8 @@ pub enum ParseErrorKind {
         /// This entry's map.
         found: String,
     },
-    /// More agents requested than the scenario has entries.
-    #[error("{requested} agents requested but the scenario has {available} entries")]
+    /// More agents requested than the file has.
+    #[error("{requested} agents requested but the file has {available}")]
     TooFewEntries {
         /// Agents requested.
         requested: usize,

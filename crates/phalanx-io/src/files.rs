@@ -71,18 +71,22 @@ pub fn read_map(path: &Path) -> Result<MovingAiMap, Error> {
 
 /// Reads an instance, the format chosen by extension: `.yaml`/`.yml` (libMRP YAML) or
 /// `.scen` (with the `.map` it names, looked up relative to the scenario's directory and
-/// then by file name beside it). `n_agents` takes the first entries of a scenario (default
-/// all); for YAML it must equal the number of agents when given.
+/// then by file name beside it). `n_agents` takes the first agents (default all).
 pub fn read_instance(path: &Path, n_agents: Option<usize>) -> Result<NamedInstance, Error> {
     let text = read_text(path)?;
     let parse_err = |err| Error::parse(path, err);
     match InstanceFormat::of(path)? {
         InstanceFormat::Yaml => {
-            let yaml = YamlInstance::parse(&text).map_err(parse_err)?;
-            if let Some(n) = n_agents.filter(|&n| n != yaml.agents.len()) {
-                let kind =
-                    ParseErrorKind::TooFewEntries { requested: n, available: yaml.agents.len() };
-                return Err(parse_err(ParseError::new(1, kind)));
+            let mut yaml = YamlInstance::parse(&text).map_err(parse_err)?;
+            if let Some(n) = n_agents {
+                if n > yaml.agents.len() {
+                    let kind = ParseErrorKind::TooFewEntries {
+                        requested: n,
+                        available: yaml.agents.len(),
+                    };
+                    return Err(parse_err(ParseError::new(1, kind)));
+                }
+                yaml.agents.truncate(n);
             }
             let instance = yaml.to_instance().map_err(parse_err)?;
             Ok(NamedInstance { instance, names: yaml.names() })

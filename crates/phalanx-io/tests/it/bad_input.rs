@@ -89,7 +89,7 @@ fn bad_scenarios() {
     check_scen(
         &format!("version 1\n{ok}\n"),
         grid(),
-        "x.scen:1: 2 agents requested but the scenario has 1 entries",
+        "x.scen:1: 2 agents requested but the file has 1",
     );
     check_scen(
         &format!("version 1\n{ok}\n{}\n", line("0 m.map 32 32 1 1 2 1 1.0")),

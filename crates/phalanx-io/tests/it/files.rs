@@ -45,8 +45,11 @@ fn yaml_and_scen_instances_round_trip() {
         assert_eq!(names, vec!["agent0", "agent1"]);
     }
     assert!(dir.path().join("i.map").is_file());
-    let first = read_instance(&dir.path().join("i.scen"), Some(1)).unwrap();
-    assert_eq!(first.instance.n_agents(), 1);
+    for name in ["i.yaml", "i.scen"] {
+        let first = read_instance(&dir.path().join(name), Some(1)).unwrap();
+        assert_eq!(first.instance.n_agents(), 1);
+        assert!(read_instance(&dir.path().join(name), Some(3)).is_err());
+    }
 }
 
 #[test]
