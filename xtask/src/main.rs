@@ -16,12 +16,14 @@ use anyhow::{Context, bail};
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let res = match args.first().map(String::as_str) {
-        Some("tidy") => xtask::tidy(&xtask::workspace_root()).map(|problems| {
-            for p in &problems {
-                eprintln!("{p}");
-            }
-            problems.is_empty()
-        }).map_err(anyhow::Error::from),
+        Some("tidy") => xtask::tidy(&xtask::workspace_root())
+            .map(|problems| {
+                for p in &problems {
+                    eprintln!("{p}");
+                }
+                problems.is_empty()
+            })
+            .map_err(anyhow::Error::from),
         Some("deps") => deps().map(|()| true),
         Some("demo") => demo().map(|()| true),
         _ => {
@@ -40,7 +42,8 @@ fn main() -> ExitCode {
 }
 
 /// Crates that must never depend on burn (ARCHITECTURE.md, invariant 1).
-const BURN_FREE: &[&str] = &["phalanx-core", "phalanx-io", "phalanx-gen", "phalanx-env", "phalanx-plan"];
+const BURN_FREE: &[&str] =
+    &["phalanx-core", "phalanx-io", "phalanx-gen", "phalanx-env", "phalanx-plan"];
 
 fn deps() -> anyhow::Result<()> {
     let root = xtask::workspace_root();
@@ -96,17 +99,38 @@ fn demo() -> anyhow::Result<()> {
 fn demo_steps(instance: &Path, out: &Path) -> Vec<Vec<String>> {
     let s = |p: &Path| p.display().to_string();
     let mut steps = vec![
-        vec!["gen", "--size", "32", "--density", "0.15", "--agents", "3", "--seed", "1", "-o", &s(instance)],
+        vec![
+            "gen",
+            "--size",
+            "32",
+            "--density",
+            "0.15",
+            "--agents",
+            "3",
+            "--seed",
+            "1",
+            "-o",
+            &s(instance),
+        ],
         vec!["info", &s(instance)],
     ]
     .into_iter()
     .map(|v| v.into_iter().map(String::from).collect::<Vec<_>>())
     .collect::<Vec<_>>();
-    let has = |sub: &str| xtask::workspace_root().join("crates/phalanx-cli/src").join(format!("{sub}.rs")).exists();
+    let has = |sub: &str| {
+        xtask::workspace_root().join("crates/phalanx-cli/src").join(format!("{sub}.rs")).exists()
+    };
     if has("solve") {
         for planner in ["cbs", "swarm"] {
             let plan = out.join(format!("plan-{planner}.yaml"));
-            steps.push(vec!["solve".into(), s(instance), "--planner".into(), planner.into(), "-o".into(), s(&plan)]);
+            steps.push(vec![
+                "solve".into(),
+                s(instance),
+                "--planner".into(),
+                planner.into(),
+                "-o".into(),
+                s(&plan),
+            ]);
             steps.push(vec!["validate".into(), s(instance), s(&plan)]);
         }
     }
