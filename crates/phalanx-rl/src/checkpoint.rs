@@ -113,8 +113,10 @@ impl Learner {
                 message: err.to_string(),
             }
         };
-        let online = self.online.clone().into_record().into_bytes().map_err(record_err("online"))?;
-        let target = self.target.clone().into_record().into_bytes().map_err(record_err("target"))?;
+        let online =
+            self.online.clone().into_record().into_bytes().map_err(record_err("online"))?;
+        let target =
+            self.target.clone().into_record().into_bytes().map_err(record_err("target"))?;
         let optim = self.optim.into_bytes().map_err(record_err("optimizer"))?;
 
         let mut buf = Vec::with_capacity(header.len() + online.len() * 4 + 64);
@@ -192,8 +194,10 @@ fn read_file(path: &Path) -> Result<File, CheckpointError> {
             CheckpointError::Io { path: path.to_path_buf(), source }
         }
     })?;
-    let malformed =
-        |reason: &str| CheckpointError::Malformed { path: path.to_path_buf(), reason: reason.into() };
+    let malformed = |reason: &str| CheckpointError::Malformed {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    };
     let rest = bytes.strip_prefix(MAGIC).ok_or_else(|| malformed("bad magic"))?;
     let mut sections = Vec::with_capacity(4);
     let mut rest = rest;
@@ -210,8 +214,8 @@ fn read_file(path: &Path) -> Result<File, CheckpointError> {
     if !rest.is_empty() {
         return Err(malformed("trailing bytes"));
     }
-    let header: Header = serde_json::from_slice(&sections[0])
-        .map_err(|err| malformed(&format!("header: {err}")))?;
+    let header: Header =
+        serde_json::from_slice(&sections[0]).map_err(|err| malformed(&format!("header: {err}")))?;
     if header.version != VERSION {
         return Err(malformed(&format!("version {} (expected {VERSION})", header.version)));
     }
@@ -221,13 +225,22 @@ fn read_file(path: &Path) -> Result<File, CheckpointError> {
     Ok(File { header, online, target, optim })
 }
 
-fn apply(net: QNet, bytes: &[u8], path: &Path, section: &'static str) -> Result<QNet, CheckpointError> {
+fn apply(
+    net: QNet,
+    bytes: &[u8],
+    path: &Path,
+    section: &'static str,
+) -> Result<QNet, CheckpointError> {
     let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
         .map_err(|err| record_error(path, section, err))?;
     net.try_load_record(record).map_err(|err| record_error(path, section, err))
 }
 
-fn record_error(path: &Path, section: &'static str, err: impl std::fmt::Display) -> CheckpointError {
+fn record_error(
+    path: &Path,
+    section: &'static str,
+    err: impl std::fmt::Display,
+) -> CheckpointError {
     CheckpointError::Record { path: path.to_path_buf(), section, message: err.to_string() }
 }
 

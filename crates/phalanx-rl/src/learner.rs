@@ -434,7 +434,12 @@ pub fn vdn_sum(q_agents: Tensor<3>) -> Tensor<2> {
 }
 
 /// One-step TD targets `r + γ (1 − terminated) next`, all slices `[B, L]`.
-pub fn td_targets(rewards: &[f32], terminated: &[f32], next_values: &[f32], gamma: f32) -> Vec<f32> {
+pub fn td_targets(
+    rewards: &[f32],
+    terminated: &[f32],
+    next_values: &[f32],
+    gamma: f32,
+) -> Vec<f32> {
     assert!(rewards.len() == terminated.len() && rewards.len() == next_values.len());
     rewards
         .iter()
@@ -579,5 +584,5 @@ pub(crate) fn tensor3(data: Vec<f32>, shape: [usize; 3], device: &Device) -> Ten
 }
 
 pub(crate) fn to_vec<const D: usize>(tensor: Tensor<D>) -> Vec<f32> {
-    tensor.into_data().to_vec::<f32>().expect("float tensor data")
+    tensor.into_data().try_to_vec::<f32>().expect("float tensor data")
 }

@@ -254,14 +254,18 @@ impl LstmLayer {
         let weight = |rng: &mut ChaCha8Rng, rows: usize| {
             let data: Vec<f32> =
                 (0..rows * 4 * d_hidden).map(|_| rng.random_range(-bound..bound)).collect();
-            Param::from_tensor(Tensor::from_data(TensorData::new(data, [rows, 4 * d_hidden]), device))
+            Param::from_tensor(Tensor::from_data(
+                TensorData::new(data, [rows, 4 * d_hidden]),
+                device,
+            ))
         };
         let input_weight = weight(rng, d_input);
         let recurrent_weight = weight(rng, d_hidden);
         let bias: Vec<f32> = (0..4 * d_hidden)
             .map(|idx| if (d_hidden..2 * d_hidden).contains(&idx) { 1.0 } else { 0.0 })
             .collect();
-        let bias = Param::from_tensor(Tensor::from_data(TensorData::new(bias, [4 * d_hidden]), device));
+        let bias =
+            Param::from_tensor(Tensor::from_data(TensorData::new(bias, [4 * d_hidden]), device));
         Self {
             input: Linear { weight: input_weight, bias: Some(bias) },
             recurrent: Linear { weight: recurrent_weight, bias: None },
@@ -315,7 +319,8 @@ fn linear(
     let bound = 1.0 / (d_input as f32).sqrt();
     let weight: Vec<f32> =
         (0..d_input * d_output).map(|_| rng.random_range(-bound..bound)).collect();
-    let weight = Param::from_tensor(Tensor::from_data(TensorData::new(weight, [d_input, d_output]), device));
+    let weight =
+        Param::from_tensor(Tensor::from_data(TensorData::new(weight, [d_input, d_output]), device));
     let bias = bias.then(|| {
         let data: Vec<f32> = (0..d_output).map(|_| rng.random_range(-bound..bound)).collect();
         Param::from_tensor(Tensor::from_data(TensorData::new(data, [d_output]), device))

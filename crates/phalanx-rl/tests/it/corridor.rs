@@ -38,7 +38,13 @@ impl Corridor {
             ]);
             let mask = &mut obs.action_mask[agent_idx * 5..agent_idx * 5 + 5];
             // Up, Down, Left, Right, Wait.
-            mask.copy_from_slice(&[false, false, self.pos[agent_idx] > 0, self.pos[agent_idx] < 3, true]);
+            mask.copy_from_slice(&[
+                false,
+                false,
+                self.pos[agent_idx] > 0,
+                self.pos[agent_idx] < 3,
+                true,
+            ]);
         }
         // The agent further ahead leads.
         obs.order = if self.pos[1] > self.pos[0] { vec![1, 0] } else { vec![0, 1] };

@@ -14,7 +14,7 @@ fn vdn_sums_over_agents() {
         TensorData::new(vec![1.0_f32, 2.0, 10.0, 20.0, 100.0, 200.0], [1, 3, 2]),
         &device,
     );
-    assert_eq!(vdn_sum(q).into_data().to_vec::<f32>().unwrap(), vec![111.0, 222.0]);
+    assert_eq!(vdn_sum(q).into_data().try_to_vec::<f32>().unwrap(), vec![111.0, 222.0]);
 }
 
 #[test]
@@ -61,11 +61,9 @@ fn masked_action_is_never_bootstrapped() {
 fn mask_q_fills_masked_actions() {
     let device = crate::plain_device();
     let q = Tensor::<3>::from_data(TensorData::new(vec![1.0_f32, 2.0, 3.0], [1, 1, 3]), &device);
-    let allowed = Tensor::<3, Bool>::from_data(
-        TensorData::new(vec![true, false, true], [1, 1, 3]),
-        &device,
-    );
-    let masked = mask_q(q, allowed).into_data().to_vec::<f32>().unwrap();
+    let allowed =
+        Tensor::<3, Bool>::from_data(TensorData::new(vec![true, false, true], [1, 1, 3]), &device);
+    let masked = mask_q(q, allowed).into_data().try_to_vec::<f32>().unwrap();
     assert_eq!(masked, vec![1.0, MASKED_Q, 3.0]);
     assert_eq!(masked_argmax(&masked, &[true; 3]), 2);
 }
