@@ -300,7 +300,7 @@ impl Learner {
         let grad_norm = clip_global_norm(&self.online, &mut grads, self.config.grad_clip_norm);
         self.online = self.optim.step(self.config.lr, self.online.clone(), grads);
         self.counters.updates += 1;
-        if self.counters.updates % self.config.target_update_interval.max(1) == 0 {
+        if self.counters.updates.is_multiple_of(self.config.target_update_interval.max(1)) {
             self.target = self.online.valid();
         }
         UpdateStats { td_loss, q_taken: q_mean, grad_norm }

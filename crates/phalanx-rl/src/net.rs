@@ -104,7 +104,7 @@ impl QNetConfig {
 
     /// Build the network with parameters drawn from `rng` on `device`.
     pub fn init(&self, rng: &mut ChaCha8Rng, device: &Device) -> QNet {
-        assert!(self.fov % 2 == 1, "field of view must be odd, got {}", self.fov);
+        assert!(!self.fov.is_multiple_of(2), "field of view must be odd, got {}", self.fov);
         assert!(self.lstm_layers >= 1, "at least one LSTM layer is needed");
         let grid_len = self.channels * self.fov * self.fov;
         let (convs, dense, enc_out) = match &self.encoder {
