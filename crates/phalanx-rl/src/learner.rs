@@ -208,10 +208,6 @@ impl Learner {
         &mut self.rng
     }
 
-    pub(crate) fn counters_mut(&mut self) -> &mut Counters {
-        &mut self.counters
-    }
-
     /// A greedy/ε-greedy acting policy with the current online weights (no autodiff).
     pub fn policy(&self) -> Policy {
         Policy::new(self.online.valid(), self.net_config.clone(), &self.device.clone().inner())

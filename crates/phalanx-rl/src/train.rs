@@ -94,10 +94,9 @@ impl Learner {
         let mut since_update = 0_u64;
         while self.counters().env_steps < end {
             let mut policy = self.policy();
-            let seed = self.rng_mut().random::<u64>();
-            let schedule = self.config().epsilon;
-            let env_steps = self.counters().env_steps;
-            let mut rng = self.rng_mut().clone();
+            let seed = self.rng.random::<u64>();
+            let schedule = self.config.epsilon;
+            let env_steps = self.counters.env_steps;
             let episode = run_episode(
                 env,
                 &mut policy,
@@ -105,10 +104,9 @@ impl Learner {
                 seed,
                 max_episode_steps,
                 |step| schedule.value(env_steps + step as u64),
-                &mut rng,
+                &mut self.rng,
             );
-            *self.rng_mut() = rng;
-            let counters = self.counters_mut();
+            let counters = &mut self.counters;
             counters.env_steps += episode.len as u64;
             counters.episodes += 1;
             let now = counters.env_steps;

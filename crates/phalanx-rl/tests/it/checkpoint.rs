@@ -106,3 +106,36 @@ fn garbage_is_malformed() {
     let err = Learner::load(&path, &crate::train_device()).err().unwrap();
     assert!(matches!(err, CheckpointError::Malformed { .. }), "{err}");
 }
+
+#[test]
+fn tensors_of_another_network_are_a_record_error() {
+    let device = crate::train_device();
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.ckpt"), dir.path().join("b.ckpt"));
+    Learner::new(corridor_net(), corridor_learner(), 2, 1, &device).save(&a).unwrap();
+    let small = QNetConfig { lstm_hidden: 16, ..corridor_net() };
+    Learner::new(small, corridor_learner(), 2, 1, &device).save(&b).unwrap();
+    // Header of `a`, tensors of `b`.
+    let sections = |path: &Path| {
+        let bytes = std::fs::read(path).unwrap();
+        let mut rest = &bytes[8..];
+        let mut res = Vec::new();
+        while !rest.is_empty() {
+            let len = u64::from_le_bytes(rest[..8].try_into().unwrap()) as usize;
+            res.push(rest[..8 + len].to_vec());
+            rest = &rest[8 + len..];
+        }
+        res
+    };
+    let (sa, sb) = (sections(&a), sections(&b));
+    let mut spliced = b"PHXRLCK1".to_vec();
+    spliced.extend_from_slice(&sa[0]);
+    for section in &sb[1..] {
+        spliced.extend_from_slice(section);
+    }
+    let path = dir.path().join("spliced.ckpt");
+    std::fs::write(&path, spliced).unwrap();
+    let err = Learner::load(&path, &device).err().unwrap();
+    assert!(matches!(err, CheckpointError::Record { section: "online", .. }), "{err}");
+    assert!(err.to_string().contains("shape"), "{err}");
+}
