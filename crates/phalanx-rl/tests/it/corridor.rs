@@ -108,7 +108,7 @@ pub(crate) fn corridor_learner() -> LearnerConfig {
         replay_capacity: 500,
         sequence: SequenceMode::Episodes,
         target_update_interval: 25,
-        epsilon: EpsilonSchedule { start: 1.0, end: 0.05, decay_steps: 1500 },
+        epsilon: EpsilonSchedule { start: 1.0, end: 0.05, decay_steps: 600 },
         grad_clip_norm: Some(10.0),
         learning_starts: 16,
         train_every: 4,
@@ -121,7 +121,7 @@ fn corridor_is_solved() {
     let mut learner = Learner::new(corridor_net(), corridor_learner(), 2, 11, &device);
     let mut env = Corridor::new();
     let mut n_updates = 0;
-    learner.train(&mut env, 3000, LIMIT, &mut |name: &'static str, _step, _value| {
+    learner.train(&mut env, 1200, LIMIT, &mut |name: &'static str, _step, _value| {
         if name == phalanx_rl::metrics::TD_LOSS {
             n_updates += 1;
         }
