@@ -2,7 +2,7 @@
 //!
 //! - [`net`]: the recurrent Q-network shared by all agents (encoder, LSTM, head with the action
 //!   message after the LSTM);
-//! - [`env`]: the environment interface the learner trains on ([`MarlEnv`], flat buffers);
+//! - [`env`](mod@env): the environment interface the learner trains on ([`MarlEnv`], flat buffers);
 //! - [`replay`]: episode replay, padded episodes or windows with burn-in;
 //! - [`learner`]: VDN + double DQN with a target network, masked actions, ε-greedy acting;
 //! - [`train`]: the collect/update loop and its metric names;
