@@ -2,7 +2,7 @@
 
 use burn::tensor::{Bool, Tensor, TensorData};
 use phalanx_rl::learner::{MASKED_Q, mask_q, masked_argmax, td_targets, vdn_sum};
-use phalanx_rl::{EpsilonSchedule, Learner};
+use phalanx_rl::{EpsilonSchedule, Learner, LearnerConfig, QNetConfig, SequenceMode};
 
 use crate::corridor::{Corridor, corridor_learner, corridor_net};
 
@@ -98,4 +98,34 @@ fn same_seed_same_losses() {
     let (first, second) = pool.install(|| (short_run_losses(5), short_run_losses(5)));
     assert!(first.len() >= 10, "only {} updates", first.len());
     assert_eq!(first, second);
+}
+
+#[test]
+fn windows_with_burn_in_train() {
+    let device = crate::train_device();
+    let mut config = corridor_learner();
+    config.sequence = SequenceMode::Windows { len: 4, burn_in: 2 };
+    config.learning_starts = 4;
+    let mut learner = Learner::new(corridor_net(), config, 2, 3, &device);
+    let mut losses = Vec::new();
+    learner.train(&mut Corridor::new(), 150, 10, &mut |name: &'static str, _step, value| {
+        if name == phalanx_rl::metrics::TD_LOSS {
+            losses.push(value);
+        }
+    });
+    assert!(losses.len() >= 10, "only {} updates", losses.len());
+    assert!(losses.iter().all(|it| it.is_finite()));
+}
+
+#[test]
+fn configs_round_trip_through_json() {
+    let paper = LearnerConfig::paper();
+    assert_eq!((paper.gamma, paper.batch_size, paper.lr), (0.95, 32, 2e-6));
+    assert_eq!(paper.sequence, SequenceMode::Episodes);
+    let json = serde_json::to_string(&paper).unwrap();
+    assert_eq!(serde_json::from_str::<LearnerConfig>(&json).unwrap(), paper);
+    let net = QNetConfig::paper();
+    assert_eq!((net.lstm_layers, net.lstm_hidden), (2, 256));
+    let json = serde_json::to_string(&net).unwrap();
+    assert_eq!(serde_json::from_str::<QNetConfig>(&json).unwrap(), net);
 }
