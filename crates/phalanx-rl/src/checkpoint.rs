@@ -1,0 +1,262 @@
+//! Checkpoints: online and target networks, Adam state, counters, configs and the RNG state in
+//! one file, written atomically (temporary file in the same directory, then rename).
+//!
+//! Layout: the magic `PHXRLCK1`, then four sections, each a little-endian `u64` length and its
+//! bytes: the JSON header ([`Header`]), the online network, the target network (both burnpack
+//! records from burn's `ModuleRecord`) and the optimiser record.
+//! The replay buffer is not saved: a resumed run refills it before its first update.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use burn::module::Module;
+use burn::store::ModuleRecord;
+use burn::tensor::{Bytes, Device};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::learner::{Counters, Learner, LearnerConfig, Policy};
+use crate::net::{QNet, QNetConfig};
+
+const MAGIC: &[u8; 8] = b"PHXRLCK1";
+const VERSION: u32 = 1;
+
+/// Errors reading or writing a checkpoint.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    /// The file does not exist.
+    #[error("checkpoint {path} does not exist")]
+    Missing {
+        /// The path asked for.
+        path: PathBuf,
+    },
+    /// Reading, writing or renaming failed.
+    #[error("checkpoint {path}: {source}")]
+    Io {
+        /// The file involved.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The file is not a checkpoint of this format (bad magic, truncated section, bad header).
+    #[error("checkpoint {path} is malformed: {reason}")]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The checkpoint's network does not match the one asked for.
+    #[error("checkpoint {path} holds network {found:?}, expected {expected:?}")]
+    ConfigMismatch {
+        /// The file.
+        path: PathBuf,
+        /// The configuration the caller expected.
+        expected: Box<QNetConfig>,
+        /// The configuration in the file.
+        found: Box<QNetConfig>,
+    },
+    /// A tensor record does not fit the network (wrong shapes or missing parameters).
+    #[error("checkpoint {path}, section {section}: {message}")]
+    Record {
+        /// The file.
+        path: PathBuf,
+        /// `online`, `target` or `optimizer`.
+        section: &'static str,
+        /// burn's message (names the parameter and both shapes).
+        message: String,
+    },
+}
+
+/// The JSON header of a checkpoint.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// Format version (1).
+    pub version: u32,
+    /// Network sizes.
+    pub net_config: QNetConfig,
+    /// Learner hyper-parameters.
+    pub learner_config: LearnerConfig,
+    /// Agents trained.
+    pub n_agents: usize,
+    /// Counters at save time.
+    pub counters: Counters,
+    /// The learner RNG: ChaCha8 seed, stream and word position (`[high, low]` 64-bit halves).
+    pub rng_seed: [u8; 32],
+    /// ChaCha8 stream.
+    pub rng_stream: u64,
+    /// ChaCha8 word position.
+    pub rng_word_pos: [u64; 2],
+}
+
+impl Learner {
+    /// Write the learner's state to `path` atomically.
+    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        let word_pos = self.rng.get_word_pos();
+        let header = Header {
+            version: VERSION,
+            net_config: self.net_config.clone(),
+            learner_config: self.config.clone(),
+            n_agents: self.n_agents,
+            counters: self.counters,
+            rng_seed: self.rng.get_seed(),
+            rng_stream: self.rng.get_stream(),
+            rng_word_pos: [(word_pos >> 64) as u64, word_pos as u64],
+        };
+        let header = serde_json::to_vec_pretty(&header).expect("header serialises");
+        let record_err = |section| {
+            move |err: burn::store::RecordError| CheckpointError::Record {
+                path: path.to_path_buf(),
+                section,
+                message: err.to_string(),
+            }
+        };
+        let online =
+            self.online.clone().into_record().into_bytes().map_err(record_err("online"))?;
+        let target =
+            self.target.clone().into_record().into_bytes().map_err(record_err("target"))?;
+        let optim = self.optim.into_bytes().map_err(record_err("optimizer"))?;
+
+        let mut buf = Vec::with_capacity(header.len() + online.len() * 4 + 64);
+        buf.extend_from_slice(MAGIC);
+        for section in [&header[..], &online[..], &target[..], &optim[..]] {
+            buf.extend_from_slice(&(section.len() as u64).to_le_bytes());
+            buf.extend_from_slice(section);
+        }
+        write_atomic(path, &buf)
+    }
+
+    /// Restore a learner saved by [`Learner::save`] onto `device` (with autodiff).
+    pub fn load(path: &Path, device: &Device) -> Result<Self, CheckpointError> {
+        let file = read_file(path)?;
+        let mut learner = Learner::new(
+            file.header.net_config.clone(),
+            file.header.learner_config.clone(),
+            file.header.n_agents,
+            0,
+            device,
+        );
+        learner.online = apply(learner.online, &file.online, path, "online")?;
+        learner.target = apply(learner.target, &file.target, path, "target")?;
+        learner.optim = learner
+            .optim
+            .from_bytes(Bytes::from_bytes_vec(file.optim))
+            .map_err(|err| record_error(path, "optimizer", err))?;
+        learner.counters = file.header.counters;
+        let mut rng = ChaCha8Rng::from_seed(file.header.rng_seed);
+        rng.set_stream(file.header.rng_stream);
+        let [high, low] = file.header.rng_word_pos;
+        rng.set_word_pos((u128::from(high) << 64) | u128::from(low));
+        learner.rng = rng;
+        Ok(learner)
+    }
+}
+
+/// Load only the acting policy (online network) of a checkpoint, checking that its network is
+/// `expected`; `device` should be a plain (non-autodiff) device.
+pub fn load_policy(
+    path: &Path,
+    expected: &QNetConfig,
+    device: &Device,
+) -> Result<Policy, CheckpointError> {
+    let file = read_file(path)?;
+    if file.header.net_config != *expected {
+        return Err(CheckpointError::ConfigMismatch {
+            path: path.to_path_buf(),
+            expected: Box::new(expected.clone()),
+            found: Box::new(file.header.net_config),
+        });
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let net = apply(expected.init(&mut rng, device), &file.online, path, "online")?;
+    Ok(Policy::new(net, expected.clone(), device))
+}
+
+/// Read a checkpoint's header only.
+pub fn read_header(path: &Path) -> Result<Header, CheckpointError> {
+    Ok(read_file(path)?.header)
+}
+
+struct File {
+    header: Header,
+    online: Vec<u8>,
+    target: Vec<u8>,
+    optim: Vec<u8>,
+}
+
+fn read_file(path: &Path) -> Result<File, CheckpointError> {
+    let bytes = fs::read(path).map_err(|source| {
+        if source.kind() == std::io::ErrorKind::NotFound {
+            CheckpointError::Missing { path: path.to_path_buf() }
+        } else {
+            CheckpointError::Io { path: path.to_path_buf(), source }
+        }
+    })?;
+    let malformed = |reason: &str| CheckpointError::Malformed {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    };
+    let rest = bytes.strip_prefix(MAGIC).ok_or_else(|| malformed("bad magic"))?;
+    let mut sections = Vec::with_capacity(4);
+    let mut rest = rest;
+    for _ in 0..4 {
+        let (len, tail) = rest.split_first_chunk::<8>().ok_or_else(|| malformed("truncated"))?;
+        let len = usize::try_from(u64::from_le_bytes(*len)).map_err(|_| malformed("too large"))?;
+        if tail.len() < len {
+            return Err(malformed("truncated section"));
+        }
+        let (section, tail) = tail.split_at(len);
+        sections.push(section.to_vec());
+        rest = tail;
+    }
+    if !rest.is_empty() {
+        return Err(malformed("trailing bytes"));
+    }
+    let header: Header =
+        serde_json::from_slice(&sections[0]).map_err(|err| malformed(&format!("header: {err}")))?;
+    if header.version != VERSION {
+        return Err(malformed(&format!("version {} (expected {VERSION})", header.version)));
+    }
+    let optim = sections.pop().expect("four sections");
+    let target = sections.pop().expect("four sections");
+    let online = sections.pop().expect("four sections");
+    Ok(File { header, online, target, optim })
+}
+
+fn apply(
+    net: QNet,
+    bytes: &[u8],
+    path: &Path,
+    section: &'static str,
+) -> Result<QNet, CheckpointError> {
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
+        .map_err(|err| record_error(path, section, err))?;
+    net.try_load_record(record).map_err(|err| record_error(path, section, err))
+}
+
+fn record_error(
+    path: &Path,
+    section: &'static str,
+    err: impl std::fmt::Display,
+) -> CheckpointError {
+    CheckpointError::Record { path: path.to_path_buf(), section, message: err.to_string() }
+}
+
+/// Write `bytes` to a temporary file next to `path`, sync it, then rename it over `path`.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
+    let io_err = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| CheckpointError::Io { path, source }
+    };
+    let mut tmp_name = path.file_name().map(|it| it.to_os_string()).unwrap_or_default();
+    tmp_name.push(".tmp");
+    let tmp = path.with_file_name(tmp_name);
+    {
+        let mut file = fs::File::create(&tmp).map_err(io_err(&tmp))?;
+        file.write_all(bytes).map_err(io_err(&tmp))?;
+        file.sync_all().map_err(io_err(&tmp))?;
+    }
+    fs::rename(&tmp, path).map_err(io_err(path))
+}

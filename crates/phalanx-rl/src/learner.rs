@@ -1,0 +1,584 @@
+//! VDN + double DQN over recurrent, parameter-shared agents (SPEC §6; EPyMARL `q_learner.py`).
+//!
+//! One update:
+//! 1. sample `B` sequences ([`Replay::sample`]) and run the online network's recurrent pass for
+//!    all `B × N` agent sequences at once (agent-slot one-hot appended to the vector input);
+//! 2. Q of the taken actions, with the messages the agents actually saw (actions of the agents
+//!    earlier in that step's leader order), summed over agents (VDN);
+//! 3. next-state actions chosen greedily by the online network *in leader order* (rank `k`
+//!    sees the greedy actions of ranks `0..k` as its message), masked actions excluded;
+//! 4. evaluated by the target network with those messages, summed over agents;
+//! 5. `y = r + γ (1 − terminated) Q_tot^target(s', a*)` (truncation bootstraps), masked MSE
+//!    over filled transitions, global-norm gradient clipping, Adam.
+
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Bool, Device, Int, Tensor, TensorData};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::env::{ObsBuffers, ObsShape};
+use crate::net::{QNet, QNetConfig, RecurrentState};
+use crate::replay::{Batch, Replay, SequenceMode};
+
+/// Q-value given to masked actions before a max or argmax ("−∞-like", finite to keep sums finite).
+pub const MASKED_Q: f32 = -1.0e9;
+
+/// Linear ε-greedy schedule over environment steps.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EpsilonSchedule {
+    /// ε at step 0.
+    pub start: f64,
+    /// ε from `decay_steps` on.
+    pub end: f64,
+    /// Environment steps of the linear decay.
+    pub decay_steps: u64,
+}
+
+impl EpsilonSchedule {
+    /// ε after `env_steps` environment steps.
+    pub fn value(&self, env_steps: u64) -> f64 {
+        if env_steps >= self.decay_steps || self.decay_steps == 0 {
+            return self.end;
+        }
+        let frac = env_steps as f64 / self.decay_steps as f64;
+        self.start + (self.end - self.start) * frac
+    }
+}
+
+/// Learner hyper-parameters. Defaults are the measured ones (see `docs/learning.md`);
+/// [`LearnerConfig::paper`] is the paper's setting.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LearnerConfig {
+    /// Discount γ (paper: 0.95).
+    pub gamma: f32,
+    /// Adam learning rate (default 5e-4 as EPyMARL; paper: 2e-6).
+    pub lr: f64,
+    /// Sequences per update (paper: 32).
+    pub batch_size: usize,
+    /// Replay capacity in episodes (default 5000, as EPyMARL).
+    pub replay_capacity: usize,
+    /// How sequences are cut (default windows of 16 with burn-in 8; paper: whole episodes).
+    pub sequence: SequenceMode,
+    /// Hard target update every this many updates (default 200).
+    pub target_update_interval: u64,
+    /// Exploration schedule (default 1.0 → 0.05 over 50 000 environment steps).
+    pub epsilon: EpsilonSchedule,
+    /// Clip the global gradient norm to this value (default 10, as EPyMARL); `None`: no clip.
+    pub grad_clip_norm: Option<f32>,
+    /// Episodes in the replay buffer before the first update (default 32).
+    pub learning_starts: usize,
+    /// Environment steps per update (default 4).
+    pub train_every: u64,
+}
+
+impl Default for LearnerConfig {
+    fn default() -> Self {
+        Self {
+            gamma: 0.95,
+            lr: 5e-4,
+            batch_size: 32,
+            replay_capacity: 5000,
+            sequence: SequenceMode::Windows { len: 16, burn_in: 8 },
+            target_update_interval: 200,
+            epsilon: EpsilonSchedule { start: 1.0, end: 0.05, decay_steps: 50_000 },
+            grad_clip_norm: Some(10.0),
+            learning_starts: 32,
+            train_every: 4,
+        }
+    }
+}
+
+impl LearnerConfig {
+    /// The paper's hyper-parameters: γ 0.95, batch 32, Adam lr 2e-6, whole-episode replay.
+    pub fn paper() -> Self {
+        Self { lr: 2e-6, sequence: SequenceMode::Episodes, ..Self::default() }
+    }
+}
+
+/// Counters of a training run (saved in checkpoints).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Counters {
+    /// Environment steps taken.
+    pub env_steps: u64,
+    /// Gradient updates done.
+    pub updates: u64,
+    /// Episodes finished.
+    pub episodes: u64,
+}
+
+/// What one update reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UpdateStats {
+    /// Masked mean squared TD error.
+    pub td_loss: f32,
+    /// Mean team Q of the taken actions over filled transitions.
+    pub q_taken: f32,
+    /// Global gradient norm before clipping.
+    pub grad_norm: f32,
+}
+
+/// The learner: online and target networks, optimiser, replay, counters and RNG.
+pub struct Learner {
+    pub(crate) net_config: QNetConfig,
+    pub(crate) config: LearnerConfig,
+    pub(crate) n_agents: usize,
+    pub(crate) device: Device,
+    pub(crate) online: QNet,
+    pub(crate) target: QNet,
+    pub(crate) optim: ModuleOptimizer,
+    pub(crate) replay: Replay,
+    pub(crate) rng: ChaCha8Rng,
+    pub(crate) counters: Counters,
+}
+
+impl Learner {
+    /// A fresh learner for `n_agents` agents; `device` must have autodiff enabled
+    /// (e.g. `Device::flex().autodiff()`). Everything random derives from `seed`.
+    pub fn new(
+        net_config: QNetConfig,
+        config: LearnerConfig,
+        n_agents: usize,
+        seed: u64,
+        device: &Device,
+    ) -> Self {
+        assert!(device.is_autodiff(), "the learner needs an autodiff device");
+        assert!(
+            (1..=net_config.n_agents_max).contains(&n_agents),
+            "{n_agents} agents do not fit {} agent slots",
+            net_config.n_agents_max
+        );
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let online = net_config.init(&mut rng, device);
+        let target = online.valid();
+        let optim = AdamConfig::new().init();
+        let replay = Replay::new(config.replay_capacity, n_agents, obs_shape(&net_config));
+        Self {
+            net_config,
+            config,
+            n_agents,
+            device: device.clone(),
+            online,
+            target,
+            optim,
+            replay,
+            rng,
+            counters: Counters::default(),
+        }
+    }
+
+    /// Network sizes.
+    pub fn net_config(&self) -> &QNetConfig {
+        &self.net_config
+    }
+
+    /// Hyper-parameters.
+    pub fn config(&self) -> &LearnerConfig {
+        &self.config
+    }
+
+    /// Number of agents the learner trains.
+    pub fn n_agents(&self) -> usize {
+        self.n_agents
+    }
+
+    /// Run counters.
+    pub fn counters(&self) -> Counters {
+        self.counters
+    }
+
+    /// Current exploration rate.
+    pub fn epsilon(&self) -> f64 {
+        self.config.epsilon.value(self.counters.env_steps)
+    }
+
+    /// The replay buffer.
+    pub fn replay(&self) -> &Replay {
+        &self.replay
+    }
+
+    /// The replay buffer, to add episodes.
+    pub fn replay_mut(&mut self) -> &mut Replay {
+        &mut self.replay
+    }
+
+    /// The learner's RNG (exploration, episode seeds, replay sampling).
+    pub fn rng_mut(&mut self) -> &mut ChaCha8Rng {
+        &mut self.rng
+    }
+
+    /// A greedy/ε-greedy acting policy with the current online weights (no autodiff).
+    pub fn policy(&self) -> Policy {
+        Policy::new(self.online.valid(), self.net_config.clone(), &self.device.clone().inner())
+    }
+
+    /// One gradient update on a sampled batch; `None` before `learning_starts` episodes.
+    pub fn update(&mut self) -> Option<UpdateStats> {
+        if self.replay.len() < self.config.learning_starts.max(1) {
+            return None;
+        }
+        let batch = self.replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng);
+        Some(self.update_on(&batch))
+    }
+
+    /// One gradient update on the given batch.
+    pub fn update_on(&mut self, batch: &Batch) -> UpdateStats {
+        let cfg = &self.net_config;
+        let (n_batch, n_agents, len) = (batch.batch, batch.n_agents, batch.len);
+        let n_obs = len + 1;
+        let n_actions = cfg.n_actions;
+        let ranks = ranks_of(&batch.order, n_batch * n_obs, n_agents);
+
+        let (features, q_taken) = {
+            let (obs, vec) = batch_inputs(batch, cfg, &self.device);
+            let (features, _) = self.online.forward_recurrent(obs, vec, None); // [B*N, L+1, H]
+            let taken_actions = pad_actions(&batch.actions, n_batch * n_agents, len);
+            let msgs = messages(&ranks, &taken_actions, batch, cfg, n_agents); // [B, N, L+1, M]
+            let msgs = tensor3(msgs, [n_batch * n_agents, n_obs, cfg.message_dim()], &self.device);
+            let q = self.online.head(features.clone(), msgs); // [B*N, L+1, A]
+            let q = q.reshape([n_batch, n_agents, n_obs, n_actions]).narrow(2, 0, len); // [B, N, L, A]
+            let idx: Vec<i64> = batch.actions.iter().map(|&a| i64::from(a)).collect();
+            let idx = Tensor::<4, Int>::from_data(
+                TensorData::new(idx, [n_batch, n_agents, len, 1]),
+                &self.device,
+            ); // [B, N, L, 1]
+            let chosen = q.gather(3, idx).reshape([n_batch, n_agents, len]); // [B, N, L]
+            (features, vdn_sum(chosen)) // [B, L]
+        };
+
+        // Double DQN: greedy next actions from the online net (no gradient), in leader order.
+        let detached = features.detach(); // [B*N, L+1, H]
+        let mut greedy = vec![0_u8; n_batch * n_agents * n_obs];
+        for rank in 0..n_agents {
+            let msgs = messages_upto(&ranks, &greedy, batch, cfg, n_agents, rank);
+            let msgs = tensor3(msgs, [n_batch * n_agents, n_obs, cfg.message_dim()], &self.device);
+            let q = to_vec(self.online.head(detached.clone(), msgs)); // [B*N, L+1, A]
+            for b in 0..n_batch {
+                for t in 0..n_obs {
+                    let agent_idx = batch.order[(b * n_obs + t) * n_agents + rank];
+                    let row = (b * n_agents + agent_idx) * n_obs + t;
+                    greedy[row] = masked_argmax(
+                        &q[row * n_actions..(row + 1) * n_actions],
+                        &batch.action_mask[row * n_actions..(row + 1) * n_actions],
+                    ) as u8;
+                }
+            }
+        }
+        let plain = self.device.clone().inner();
+        let (obs, vec) = batch_inputs(batch, cfg, &plain);
+        let (target_features, _) = self.target.forward_recurrent(obs, vec, None); // [B*N, L+1, H]
+        let msgs = messages(&ranks, &greedy, batch, cfg, n_agents);
+        let msgs = tensor3(msgs, [n_batch * n_agents, n_obs, cfg.message_dim()], &plain);
+        let q_target = to_vec(self.target.head(target_features, msgs)); // [B*N, L+1, A]
+        let mut next_values = vec![0.0_f32; n_batch * len];
+        for b in 0..n_batch {
+            for t in 0..len {
+                next_values[b * len + t] = (0..n_agents)
+                    .map(|agent_idx| {
+                        let row = (b * n_agents + agent_idx) * n_obs + t + 1;
+                        q_target[row * n_actions + usize::from(greedy[row])]
+                    })
+                    .sum();
+            }
+        }
+        let targets =
+            td_targets(&batch.rewards, &batch.terminated, &next_values, self.config.gamma);
+
+        let targets = tensor2(targets, [n_batch, len], &self.device); // [B, L]
+        let filled = tensor2(batch.filled.clone(), [n_batch, len], &self.device); // [B, L]
+        let n_filled = batch.filled.iter().sum::<f32>().max(1.0);
+        let q_mean = to_vec((q_taken.clone().detach() * filled.clone()).sum())[0] / n_filled;
+        let td = (q_taken - targets) * filled; // [B, L]
+        let loss = td.square().sum().div_scalar(n_filled); // [1]
+        let td_loss = to_vec(loss.clone().detach())[0];
+        let mut grads = GradientsParams::from_grads(loss.backward(), &self.online);
+        let grad_norm = clip_global_norm(&self.online, &mut grads, self.config.grad_clip_norm);
+        self.online = self.optim.step(self.config.lr, self.online.clone(), grads);
+        self.counters.updates += 1;
+        if self.counters.updates.is_multiple_of(self.config.target_update_interval.max(1)) {
+            self.target = self.online.valid();
+        }
+        UpdateStats { td_loss, q_taken: q_mean, grad_norm }
+    }
+}
+
+/// The observation shape a network expects.
+pub fn obs_shape(config: &QNetConfig) -> ObsShape {
+    ObsShape {
+        channels: config.channels,
+        fov: config.fov,
+        env_vec: config.env_vec,
+        n_actions: config.n_actions,
+    }
+}
+
+/// Acting with a frozen network: batched recurrent step for all agents, then the head in
+/// leader order with the messages of the agents before.
+#[derive(Clone, Debug)]
+pub struct Policy {
+    net: QNet,
+    config: QNetConfig,
+    device: Device,
+    state: Option<RecurrentState>,
+}
+
+impl Policy {
+    /// Wrap a network (normally without autodiff: `net.valid()`).
+    pub fn new(net: QNet, config: QNetConfig, device: &Device) -> Self {
+        Self { net, config, device: device.clone(), state: None }
+    }
+
+    /// Forget the recurrent state (call at every episode start).
+    pub fn reset(&mut self) {
+        self.state = None;
+    }
+
+    /// Choose every agent's action for the current observation, ε-greedily among the allowed
+    /// actions, agents in `obs.order`. Writes `actions[agent_idx]`.
+    pub fn act(
+        &mut self,
+        obs: &ObsBuffers,
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+    ) {
+        let mut q = vec![0.0; obs.n_agents * self.config.n_actions];
+        self.act_with_q(obs, epsilon, rng, actions, &mut q);
+    }
+
+    /// [`Policy::act`] that also writes each agent's Q-values (`[N, A]`, row `agent_idx`, the
+    /// message being the actions chosen before it; masked actions hold [`MASKED_Q`]).
+    pub fn act_with_q(
+        &mut self,
+        obs: &ObsBuffers,
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+        q_out: &mut [f32],
+    ) {
+        let cfg = &self.config;
+        let n_agents = obs.n_agents;
+        debug_assert!(n_agents <= cfg.n_agents_max);
+        let (fov, channels, n_actions) = (cfg.fov, cfg.channels, cfg.n_actions);
+        let grid = Tensor::<5>::from_data(
+            TensorData::new(obs.grid.clone(), [n_agents, 1, channels, fov, fov]),
+            &self.device,
+        ); // [N, 1, C, F, F]
+        let mut vec = vec![0.0_f32; n_agents * cfg.vec_dim()];
+        for agent_idx in 0..n_agents {
+            let row = &mut vec[agent_idx * cfg.vec_dim()..(agent_idx + 1) * cfg.vec_dim()];
+            row[..cfg.env_vec]
+                .copy_from_slice(&obs.vec[agent_idx * cfg.env_vec..(agent_idx + 1) * cfg.env_vec]);
+            row[cfg.env_vec + agent_idx] = 1.0;
+        }
+        let vec = tensor3(vec, [n_agents, 1, cfg.vec_dim()], &self.device); // [N, 1, V]
+        let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take()); // [N, 1, H]
+        self.state = Some(state);
+        let mut message = vec![0.0_f32; cfg.message_dim()];
+        for &agent_idx in &obs.order {
+            let feat = features.clone().narrow(0, agent_idx, 1); // [1, 1, H]
+            let msg = tensor3(message.clone(), [1, 1, cfg.message_dim()], &self.device); // [1, 1, M]
+            let mask = obs.mask_of(agent_idx);
+            let q = &mut q_out[agent_idx * n_actions..(agent_idx + 1) * n_actions];
+            q.copy_from_slice(&to_vec(self.net.head(feat, msg))); // [A]
+            for (value, &ok) in q.iter_mut().zip(mask) {
+                if !ok {
+                    *value = MASKED_Q;
+                }
+            }
+            let action = if rng.random::<f64>() < epsilon {
+                let allowed: Vec<usize> = (0..n_actions).filter(|&a| mask[a]).collect();
+                allowed[rng.random_range(0..allowed.len())]
+            } else {
+                masked_argmax(q, mask)
+            };
+            actions[agent_idx] = action as u8;
+            message[agent_idx * n_actions + action] = 1.0;
+        }
+    }
+}
+
+/// Index of the largest allowed Q-value (ties: the smallest index). Panics if nothing is allowed.
+pub fn masked_argmax(q: &[f32], allowed: &[bool]) -> usize {
+    assert_eq!(q.len(), allowed.len(), "Q and mask lengths differ");
+    let mut best = None;
+    for (idx, (&value, &ok)) in q.iter().zip(allowed).enumerate() {
+        if ok && best.is_none_or(|(_, best_value)| value > best_value) {
+            best = Some((idx, value));
+        }
+    }
+    best.expect("at least one action must be allowed").0
+}
+
+/// Replace the Q-values of masked actions by [`MASKED_Q`].
+///
+/// # Shapes
+/// - `q`, `allowed`: `[batch, time, A]`
+pub fn mask_q(q: Tensor<3>, allowed: Tensor<3, Bool>) -> Tensor<3> {
+    q.mask_fill(allowed.bool_not(), MASKED_Q) // [batch, time, A]
+}
+
+/// VDN mixer: the team Q is the sum of the agents' Q.
+///
+/// # Shapes
+/// - `q_agents`: `[batch, n_agents, time]`
+/// - returns `[batch, time]`
+pub fn vdn_sum(q_agents: Tensor<3>) -> Tensor<2> {
+    let [batch, _, time] = q_agents.dims();
+    q_agents.sum_dim(1).reshape([batch, time]) // [batch, time]
+}
+
+/// One-step TD targets `r + γ (1 − terminated) next`, all slices `[B, L]`.
+pub fn td_targets(
+    rewards: &[f32],
+    terminated: &[f32],
+    next_values: &[f32],
+    gamma: f32,
+) -> Vec<f32> {
+    assert!(rewards.len() == terminated.len() && rewards.len() == next_values.len());
+    rewards
+        .iter()
+        .zip(terminated)
+        .zip(next_values)
+        .map(|((&r, &done), &next)| r + gamma * (1.0 - done) * next)
+        .collect()
+}
+
+/// Scale the gradients so that their global L2 norm is at most `max_norm`; returns the norm
+/// before clipping.
+fn clip_global_norm(model: &QNet, grads: &mut GradientsParams, max_norm: Option<f32>) -> f32 {
+    struct SquaredNorms<'a> {
+        grads: &'a GradientsParams,
+        parts: Vec<Tensor<1>>,
+    }
+    impl ModuleVisitor for SquaredNorms<'_> {
+        fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+            if let Some(grad) = self.grads.get::<D>(param.id) {
+                self.parts.push(grad.square().sum());
+            }
+        }
+    }
+    struct Scale<'a> {
+        grads: &'a mut GradientsParams,
+        scale: f32,
+    }
+    impl ModuleVisitor for Scale<'_> {
+        fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+            if let Some(grad) = self.grads.remove::<D>(param.id) {
+                self.grads.register(param.id, grad.mul_scalar(self.scale));
+            }
+        }
+    }
+    let mut norms = SquaredNorms { grads, parts: Vec::new() };
+    model.visit(&mut norms);
+    if norms.parts.is_empty() {
+        return 0.0;
+    }
+    let norm = to_vec(Tensor::cat(norms.parts, 0).sum())[0].sqrt();
+    if let Some(max_norm) = max_norm
+        && norm > max_norm
+    {
+        model.visit(&mut Scale { grads, scale: max_norm / (norm + 1e-6) });
+    }
+    norm
+}
+
+/// Network inputs of a batch: grids `[B*N, L+1, C, F, F]` and vectors `[B*N, L+1, V]` with
+/// the agent-slot one-hot.
+fn batch_inputs(batch: &Batch, cfg: &QNetConfig, device: &Device) -> (Tensor<5>, Tensor<3>) {
+    let rows = batch.batch * batch.n_agents;
+    let n_obs = batch.len + 1;
+    let grid = Tensor::<5>::from_data(
+        TensorData::new(batch.grid.clone(), [rows, n_obs, cfg.channels, cfg.fov, cfg.fov]),
+        device,
+    );
+    let vec_dim = cfg.vec_dim();
+    let mut vec = vec![0.0_f32; rows * n_obs * vec_dim];
+    for row in 0..rows {
+        let agent_idx = row % batch.n_agents;
+        for t in 0..n_obs {
+            let src = (row * n_obs + t) * cfg.env_vec;
+            let dst = (row * n_obs + t) * vec_dim;
+            vec[dst..dst + cfg.env_vec].copy_from_slice(&batch.vec[src..src + cfg.env_vec]);
+            vec[dst + cfg.env_vec + agent_idx] = 1.0;
+        }
+    }
+    (grid, tensor3(vec, [rows, n_obs, vec_dim], device))
+}
+
+/// `ranks[(bt) * N + agent] = rank` from `order[(bt) * N + rank] = agent`.
+fn ranks_of(order: &[usize], n_steps: usize, n_agents: usize) -> Vec<usize> {
+    let mut ranks = vec![0; n_steps * n_agents];
+    for step in 0..n_steps {
+        for rank in 0..n_agents {
+            ranks[step * n_agents + order[step * n_agents + rank]] = rank;
+        }
+    }
+    ranks
+}
+
+/// Actions `[rows, L]` padded to `[rows, L + 1]` (no action after the last observation).
+fn pad_actions(actions: &[u8], rows: usize, len: usize) -> Vec<u8> {
+    let mut res = vec![0; rows * (len + 1)];
+    for row in 0..rows {
+        res[row * (len + 1)..row * (len + 1) + len]
+            .copy_from_slice(&actions[row * len..(row + 1) * len]);
+    }
+    res
+}
+
+/// Messages `[B, N, L+1, M]`: agent `i` sees the actions of all agents ranked before it.
+fn messages(
+    ranks: &[usize],
+    actions: &[u8],
+    batch: &Batch,
+    cfg: &QNetConfig,
+    n_agents: usize,
+) -> Vec<f32> {
+    messages_upto(ranks, actions, batch, cfg, n_agents, n_agents)
+}
+
+/// Messages `[B, N, L+1, M]` from `actions` `[B, N, L+1]`, counting only senders ranked below
+/// `rank_limit` (the agents already decided).
+fn messages_upto(
+    ranks: &[usize],
+    actions: &[u8],
+    batch: &Batch,
+    cfg: &QNetConfig,
+    n_agents: usize,
+    rank_limit: usize,
+) -> Vec<f32> {
+    let n_obs = batch.len + 1;
+    let msg_dim = cfg.message_dim();
+    let mut res = vec![0.0_f32; batch.batch * n_agents * n_obs * msg_dim];
+    for b in 0..batch.batch {
+        for t in 0..n_obs {
+            let step = b * n_obs + t;
+            for receiver in 0..n_agents {
+                let receiver_rank = ranks[step * n_agents + receiver];
+                let dst = ((b * n_agents + receiver) * n_obs + t) * msg_dim;
+                for sender in 0..n_agents {
+                    let sender_rank = ranks[step * n_agents + sender];
+                    if sender_rank < receiver_rank && sender_rank < rank_limit {
+                        let action = usize::from(actions[(b * n_agents + sender) * n_obs + t]);
+                        res[dst + sender * cfg.n_actions + action] = 1.0;
+                    }
+                }
+            }
+        }
+    }
+    res
+}
+
+pub(crate) fn tensor2(data: Vec<f32>, shape: [usize; 2], device: &Device) -> Tensor<2> {
+    Tensor::from_data(TensorData::new(data, shape), device)
+}
+
+pub(crate) fn tensor3(data: Vec<f32>, shape: [usize; 3], device: &Device) -> Tensor<3> {
+    Tensor::from_data(TensorData::new(data, shape), device)
+}
+
+pub(crate) fn to_vec<const D: usize>(tensor: Tensor<D>) -> Vec<f32> {
+    tensor.into_data().try_to_vec::<f32>().expect("float tensor data")
+}

@@ -1,0 +1,349 @@
+//! The recurrent Q-network shared by all agents (SPEC §6).
+//!
+//! One agent's pass: observation encoder (conv or MLP over the `C × F × F` channels, plus the
+//! goal vector and the agent-slot one-hot), a stack of LSTM layers, then a small head that takes
+//! the recurrent features *and* the action message (one-hot actions of the agents that acted
+//! earlier in this step) and returns one Q-value per action.
+//! The message enters after the LSTM so that all agents' recurrent passes batch together and
+//! only the head runs in leader order.
+//!
+//! burn 0.22 modules carry no backend type parameter: the backend (flex CPU, CUDA, ...) and
+//! autodiff are properties of the [`Device`] the parameters live on, chosen at run time.
+//! Parameters are initialised from a seeded [`ChaCha8Rng`] (not burn's device RNG, which is
+//! shared process state), so the same seed gives the same network on any thread count.
+
+use burn::module::{Module, Param};
+use burn::nn::conv::Conv2d;
+use burn::nn::{Linear, PaddingConfig2d};
+use burn::tensor::activation::{relu, sigmoid, tanh};
+use burn::tensor::{Device, Tensor, TensorData};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+/// Observation encoder choice.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum EncoderConfig {
+    /// Flatten the channels, concatenate the vector input, then dense layers with ReLU.
+    Mlp {
+        /// Width of each hidden layer (the last one is the encoder output).
+        hidden: Vec<usize>,
+    },
+    /// 3 × 3 convolutions ("same" padding, ReLU) over the channels, then one dense layer over
+    /// the flattened maps and the vector input.
+    Conv {
+        /// Output channels of each convolution.
+        channels: Vec<usize>,
+        /// Width of the dense layer after the convolutions (the encoder output).
+        hidden: usize,
+    },
+}
+
+/// Sizes of the Q-network.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct QNetConfig {
+    /// Observation channels `C` (SPEC §4: 4).
+    pub channels: usize,
+    /// Field of view `F` (odd; SPEC §4: 9).
+    pub fov: usize,
+    /// Length of the environment's vector observation (goal vector: 3).
+    pub env_vec: usize,
+    /// Agent slots: the agent-slot one-hot and the message have one block per slot.
+    pub n_agents_max: usize,
+    /// Number of actions `A` (5 for path finding and formation, 2 for meta).
+    pub n_actions: usize,
+    /// Observation encoder.
+    pub encoder: EncoderConfig,
+    /// LSTM hidden size `H` (paper: 256).
+    pub lstm_hidden: usize,
+    /// Number of stacked LSTM layers (paper: 2).
+    pub lstm_layers: usize,
+    /// Hidden width of the head (features + message -> hidden -> Q).
+    pub head_hidden: usize,
+}
+
+impl Default for QNetConfig {
+    /// The cheap default: MLP encoder (128), 1 × LSTM-128, head 64; 5 actions, 8 agent slots.
+    fn default() -> Self {
+        Self {
+            channels: 4,
+            fov: 9,
+            env_vec: 3,
+            n_agents_max: 8,
+            n_actions: 5,
+            encoder: EncoderConfig::Mlp { hidden: vec![128] },
+            lstm_hidden: 128,
+            lstm_layers: 1,
+            head_hidden: 64,
+        }
+    }
+}
+
+impl QNetConfig {
+    /// The paper's network: conv encoder (32, 32 channels, dense 256), 2 × LSTM-256, head 128.
+    pub fn paper() -> Self {
+        Self {
+            encoder: EncoderConfig::Conv { channels: vec![32, 32], hidden: 256 },
+            lstm_hidden: 256,
+            lstm_layers: 2,
+            head_hidden: 128,
+            ..Self::default()
+        }
+    }
+
+    /// Width of the vector input: environment vector plus the agent-slot one-hot.
+    pub fn vec_dim(&self) -> usize {
+        self.env_vec + self.n_agents_max
+    }
+
+    /// Width of the message input: one action one-hot per agent slot.
+    pub fn message_dim(&self) -> usize {
+        self.n_agents_max * self.n_actions
+    }
+
+    /// Build the network with parameters drawn from `rng` on `device`.
+    pub fn init(&self, rng: &mut ChaCha8Rng, device: &Device) -> QNet {
+        assert!(!self.fov.is_multiple_of(2), "field of view must be odd, got {}", self.fov);
+        assert!(self.lstm_layers >= 1, "at least one LSTM layer is needed");
+        let grid_len = self.channels * self.fov * self.fov;
+        let (convs, dense, enc_out) = match &self.encoder {
+            EncoderConfig::Mlp { hidden } => {
+                assert!(!hidden.is_empty(), "the MLP encoder needs at least one layer");
+                let mut d_in = grid_len + self.vec_dim();
+                let mut dense = Vec::new();
+                for &width in hidden {
+                    dense.push(linear(rng, d_in, width, true, device));
+                    d_in = width;
+                }
+                (Vec::new(), dense, d_in)
+            }
+            EncoderConfig::Conv { channels, hidden } => {
+                let mut c_in = self.channels;
+                let mut convs = Vec::new();
+                for &c_out in channels {
+                    convs.push(conv3x3(rng, c_in, c_out, device));
+                    c_in = c_out;
+                }
+                let d_in = c_in * self.fov * self.fov + self.vec_dim();
+                (convs, vec![linear(rng, d_in, *hidden, true, device)], *hidden)
+            }
+        };
+        let mut lstm = Vec::new();
+        let mut d_in = enc_out;
+        for _ in 0..self.lstm_layers {
+            lstm.push(LstmLayer::init(rng, d_in, self.lstm_hidden, device));
+            d_in = self.lstm_hidden;
+        }
+        let head_hidden =
+            linear(rng, self.lstm_hidden + self.message_dim(), self.head_hidden, true, device);
+        let head_out = linear(rng, self.head_hidden, self.n_actions, true, device);
+        QNet { convs, dense, lstm, head_hidden, head_out }
+    }
+}
+
+/// The Q-network. Build it with [`QNetConfig::init`].
+#[derive(Module, Debug)]
+pub struct QNet {
+    convs: Vec<Conv2d>,
+    dense: Vec<Linear>,
+    lstm: Vec<LstmLayer>,
+    head_hidden: Linear,
+    head_out: Linear,
+}
+
+/// Recurrent state of a batch: `(cell, hidden)` per LSTM layer, each `[batch, H]`.
+#[derive(Clone, Debug)]
+pub struct RecurrentState {
+    /// One `(cell, hidden)` pair per layer.
+    pub layers: Vec<(Tensor<2>, Tensor<2>)>,
+}
+
+impl RecurrentState {
+    /// Zero state for `batch` sequences.
+    pub fn zeros(config: &QNetConfig, batch: usize, device: &Device) -> Self {
+        let zeros = || Tensor::<2>::zeros([batch, config.lstm_hidden], device);
+        Self { layers: (0..config.lstm_layers).map(|_| (zeros(), zeros())).collect() }
+    }
+
+    /// Cut the state from the autodiff graph.
+    pub fn detach(self) -> Self {
+        Self { layers: self.layers.into_iter().map(|(c, h)| (c.detach(), h.detach())).collect() }
+    }
+}
+
+impl QNet {
+    /// Encoder and LSTM layers over a batch of observation sequences.
+    ///
+    /// `state` is the state before the first step (`None`: zeros).
+    ///
+    /// # Shapes
+    /// - `obs`: `[batch, time, C, F, F]`
+    /// - `vec`: `[batch, time, V]` (environment vector, then agent-slot one-hot)
+    /// - returns features `[batch, time, H]` and the state after the last step
+    pub fn forward_recurrent(
+        &self,
+        obs: Tensor<5>,
+        vec: Tensor<3>,
+        state: Option<RecurrentState>,
+    ) -> (Tensor<3>, RecurrentState) {
+        let [batch, time, channels, fov, _] = obs.dims();
+        let vec_dim = vec.dims()[2];
+        let vec = vec.reshape([batch * time, vec_dim]); // [batch * time, V]
+        let mut x = if self.convs.is_empty() {
+            let grid = obs.reshape([batch * time, channels * fov * fov]); // [batch * time, C*F*F]
+            Tensor::cat(vec![grid, vec], 1) // [batch * time, C*F*F + V]
+        } else {
+            let mut maps = obs.reshape([batch * time, channels, fov, fov]); // [batch * time, C, F, F]
+            for conv in &self.convs {
+                maps = relu(conv.forward(maps)); // [batch * time, C', F, F]
+            }
+            let [_, c_out, _, _] = maps.dims();
+            let flat = maps.reshape([batch * time, c_out * fov * fov]); // [batch * time, C'*F*F]
+            Tensor::cat(vec![flat, vec], 1) // [batch * time, C'*F*F + V]
+        };
+        for layer in &self.dense {
+            x = relu(layer.forward(x)); // [batch * time, E]
+        }
+        let enc_dim = x.dims()[1];
+        let mut seq = x.reshape([batch, time, enc_dim]); // [batch, time, E]
+        let device = seq.device();
+        let mut state_in = state.map(|it| it.layers.into_iter());
+        let mut layers_out = Vec::with_capacity(self.lstm.len());
+        for layer in &self.lstm {
+            let init = match &mut state_in {
+                Some(it) => it.next().expect("state has one entry per LSTM layer"),
+                None => {
+                    let zeros = Tensor::<2>::zeros([batch, layer.d_hidden()], &device);
+                    (zeros.clone(), zeros)
+                }
+            };
+            let (out, last) = layer.forward(seq, init);
+            seq = out; // [batch, time, H]
+            layers_out.push(last);
+        }
+        (seq, RecurrentState { layers: layers_out })
+    }
+
+    /// The Q head: recurrent features plus the action message.
+    ///
+    /// # Shapes
+    /// - `features`: `[batch, time, H]`
+    /// - `messages`: `[batch, time, M]` (`M = n_agents_max * n_actions`)
+    /// - returns `[batch, time, A]`
+    pub fn head(&self, features: Tensor<3>, messages: Tensor<3>) -> Tensor<3> {
+        let x = Tensor::cat(vec![features, messages], 2); // [batch, time, H + M]
+        let x = relu(self.head_hidden.forward(x)); // [batch, time, head_hidden]
+        self.head_out.forward(x) // [batch, time, A]
+    }
+}
+
+/// One LSTM layer with fused gates: the input projection runs once over the whole sequence and
+/// only the `[batch, H] × [H, 4H]` recurrent product runs per step.
+/// Gate order in the `4H` axis: input, forget, cell, output.
+#[derive(Module, Debug)]
+pub struct LstmLayer {
+    input: Linear,
+    recurrent: Linear,
+}
+
+impl LstmLayer {
+    /// Uniform(±1/√H) weights (PyTorch's LSTM default); forget-gate bias 1.
+    fn init(rng: &mut ChaCha8Rng, d_input: usize, d_hidden: usize, device: &Device) -> Self {
+        let bound = 1.0 / (d_hidden as f32).sqrt();
+        let weight = |rng: &mut ChaCha8Rng, rows: usize| {
+            let data: Vec<f32> =
+                (0..rows * 4 * d_hidden).map(|_| rng.random_range(-bound..bound)).collect();
+            Param::from_tensor(Tensor::from_data(
+                TensorData::new(data, [rows, 4 * d_hidden]),
+                device,
+            ))
+        };
+        let input_weight = weight(rng, d_input);
+        let recurrent_weight = weight(rng, d_hidden);
+        let bias: Vec<f32> = (0..4 * d_hidden)
+            .map(|idx| if (d_hidden..2 * d_hidden).contains(&idx) { 1.0 } else { 0.0 })
+            .collect();
+        let bias =
+            Param::from_tensor(Tensor::from_data(TensorData::new(bias, [4 * d_hidden]), device));
+        Self {
+            input: Linear { weight: input_weight, bias: Some(bias) },
+            recurrent: Linear { weight: recurrent_weight, bias: None },
+        }
+    }
+
+    fn d_hidden(&self) -> usize {
+        self.recurrent.weight.dims()[0]
+    }
+
+    /// # Shapes
+    /// - `seq`: `[batch, time, D]`, `state`: `(cell, hidden)` each `[batch, H]`
+    /// - returns `[batch, time, H]` and the last `(cell, hidden)`
+    fn forward(
+        &self,
+        seq: Tensor<3>,
+        state: (Tensor<2>, Tensor<2>),
+    ) -> (Tensor<3>, (Tensor<2>, Tensor<2>)) {
+        let [batch, time, _] = seq.dims();
+        let d_hidden = self.d_hidden();
+        let projected = self.input.forward(seq); // [batch, time, 4H]
+        let (mut cell, mut hidden) = state; // [batch, H] each
+        let mut outputs = Vec::with_capacity(time);
+        for t in 0..time {
+            let x_t = projected.clone().narrow(1, t, 1).reshape([batch, 4 * d_hidden]); // [batch, 4H]
+            let gates = x_t + self.recurrent.forward(hidden); // [batch, 4H]
+            let mut parts = gates.chunk(4, 1).into_iter(); // 4 × [batch, H]
+            let mut next = || parts.next().expect("four gates");
+            let (i, f, g, o) = (next(), next(), next(), next());
+            cell = sigmoid(f) * cell + sigmoid(i) * tanh(g); // [batch, H]
+            hidden = sigmoid(o) * tanh(cell.clone()); // [batch, H]
+            outputs.push(hidden.clone());
+        }
+        let out = if time == 1 {
+            outputs.pop().expect("one step").reshape([batch, 1, d_hidden]) // [batch, 1, H]
+        } else {
+            Tensor::stack(outputs, 1) // [batch, time, H]
+        };
+        (out, (cell, hidden))
+    }
+}
+
+/// Dense layer with Uniform(±1/√fan_in) weights and biases (PyTorch's default).
+fn linear(
+    rng: &mut ChaCha8Rng,
+    d_input: usize,
+    d_output: usize,
+    bias: bool,
+    device: &Device,
+) -> Linear {
+    let bound = 1.0 / (d_input as f32).sqrt();
+    let weight: Vec<f32> =
+        (0..d_input * d_output).map(|_| rng.random_range(-bound..bound)).collect();
+    let weight =
+        Param::from_tensor(Tensor::from_data(TensorData::new(weight, [d_input, d_output]), device));
+    let bias = bias.then(|| {
+        let data: Vec<f32> = (0..d_output).map(|_| rng.random_range(-bound..bound)).collect();
+        Param::from_tensor(Tensor::from_data(TensorData::new(data, [d_output]), device))
+    });
+    Linear { weight, bias }
+}
+
+/// 3 × 3 convolution, stride 1, "same" padding, Uniform(±1/√fan_in) weights and biases.
+fn conv3x3(rng: &mut ChaCha8Rng, c_in: usize, c_out: usize, device: &Device) -> Conv2d {
+    let fan_in = c_in * 9;
+    let bound = 1.0 / (fan_in as f32).sqrt();
+    let weight: Vec<f32> = (0..c_out * fan_in).map(|_| rng.random_range(-bound..bound)).collect();
+    let bias: Vec<f32> = (0..c_out).map(|_| rng.random_range(-bound..bound)).collect();
+    Conv2d {
+        weight: Param::from_tensor(Tensor::from_data(
+            TensorData::new(weight, [c_out, c_in, 3, 3]),
+            device,
+        )),
+        bias: Some(Param::from_tensor(Tensor::from_data(TensorData::new(bias, [c_out]), device))),
+        stride: [1, 1],
+        kernel_size: [3, 3],
+        dilation: [1, 1],
+        groups: 1,
+        padding: PaddingConfig2d::Same,
+    }
+}

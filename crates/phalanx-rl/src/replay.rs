@@ -1,0 +1,244 @@
+//! Episode replay: whole recorded episodes, sampled as padded episodes or as fixed-length
+//! windows with burn-in.
+//!
+//! An [`Episode`] of `T` steps stores `T + 1` observations (the last one is the observation
+//! after the final step, needed to bootstrap a truncated episode), `T` joint actions and team
+//! rewards, and whether it ended by termination.
+//! A [`Batch`] is a set of aligned sequences of `len + 1` observations and `len` transitions with
+//! a `filled` mask: padding and burn-in transitions carry no loss.
+
+use std::collections::VecDeque;
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::env::{ObsBuffers, ObsShape};
+
+/// How training sequences are cut from episodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SequenceMode {
+    /// Whole episodes, padded to the longest in the batch (the paper; EPyMARL).
+    Episodes,
+    /// Windows of `len` trained transitions, preceded by up to `burn_in` transitions that only
+    /// warm the LSTM state (R2D2). A window near the episode start has a shorter burn-in.
+    Windows {
+        /// Trained transitions per window.
+        len: usize,
+        /// Transitions run before the window without loss.
+        burn_in: usize,
+    },
+}
+
+/// One recorded episode.
+#[derive(Clone, Debug, Default)]
+pub struct Episode {
+    /// Number of steps `T`.
+    pub len: usize,
+    /// Grid observations, `[T + 1, N, C, F, F]`.
+    pub grid: Vec<f32>,
+    /// Vector observations, `[T + 1, N, env_vec]`.
+    pub vec: Vec<f32>,
+    /// Allowed actions, `[T + 1, N, A]`.
+    pub action_mask: Vec<bool>,
+    /// Acting order, `[T + 1, N]` (ranks to agents).
+    pub order: Vec<usize>,
+    /// Joint actions, `[T, N]`.
+    pub actions: Vec<u8>,
+    /// Team rewards, `[T]`.
+    pub rewards: Vec<f32>,
+    /// Whether the last step terminated the episode (otherwise it was truncated).
+    pub terminated: bool,
+}
+
+impl Episode {
+    /// Start an episode at its first observation.
+    pub fn start(obs: &ObsBuffers) -> Self {
+        let mut res = Self::default();
+        res.push_obs(obs);
+        res
+    }
+
+    /// Record one step: the joint action, its reward, and the observation it led to.
+    pub fn push_step(&mut self, actions: &[u8], reward: f32, next_obs: &ObsBuffers) {
+        self.actions.extend_from_slice(actions);
+        self.rewards.push(reward);
+        self.len += 1;
+        self.push_obs(next_obs);
+    }
+
+    fn push_obs(&mut self, obs: &ObsBuffers) {
+        self.grid.extend_from_slice(&obs.grid);
+        self.vec.extend_from_slice(&obs.vec);
+        self.action_mask.extend_from_slice(&obs.action_mask);
+        self.order.extend_from_slice(&obs.order);
+    }
+
+    /// Sum of the team rewards.
+    pub fn team_return(&self) -> f32 {
+        self.rewards.iter().sum()
+    }
+}
+
+/// A batch of aligned sequences, laid out agent-major so that `[B, N, ...]` reshapes to the
+/// network's `[B * N, time, ...]`.
+#[derive(Clone, Debug)]
+pub struct Batch {
+    /// Sequences `B`.
+    pub batch: usize,
+    /// Agents `N`.
+    pub n_agents: usize,
+    /// Transitions per sequence `L` (observations per sequence: `L + 1`).
+    pub len: usize,
+    /// Observation sizes.
+    pub shape: ObsShape,
+    /// `[B, N, L + 1, C, F, F]`.
+    pub grid: Vec<f32>,
+    /// `[B, N, L + 1, env_vec]` (the agent-slot one-hot is added by the learner).
+    pub vec: Vec<f32>,
+    /// `[B, N, L + 1, A]`; padding allows every action.
+    pub action_mask: Vec<bool>,
+    /// `[B, L + 1, N]`; padding is the identity order.
+    pub order: Vec<usize>,
+    /// `[B, N, L]`; padding 0.
+    pub actions: Vec<u8>,
+    /// `[B, L]`.
+    pub rewards: Vec<f32>,
+    /// `[B, L]`: 1 where the transition ends the episode by termination (no bootstrap).
+    pub terminated: Vec<f32>,
+    /// `[B, L]`: 1 where the transition is real and trained (not padding, not burn-in).
+    pub filled: Vec<f32>,
+}
+
+impl Batch {
+    fn empty(batch: usize, n_agents: usize, len: usize, shape: ObsShape) -> Self {
+        let n_obs = batch * n_agents * (len + 1);
+        Self {
+            batch,
+            n_agents,
+            len,
+            shape,
+            grid: vec![0.0; n_obs * shape.grid_len()],
+            vec: vec![0.0; n_obs * shape.env_vec],
+            action_mask: vec![true; n_obs * shape.n_actions],
+            order: (0..batch * (len + 1)).flat_map(|_| 0..n_agents).collect(),
+            actions: vec![0; batch * n_agents * len],
+            rewards: vec![0.0; batch * len],
+            terminated: vec![0.0; batch * len],
+            filled: vec![0.0; batch * len],
+        }
+    }
+
+    /// Copy episode `ep`'s observations `from..from + n_obs` and transitions
+    /// `from..from + n_obs - 1` into sequence `b`; transitions from `train_from` on are filled.
+    fn copy_from(&mut self, b: usize, ep: &Episode, from: usize, n_obs: usize, train_from: usize) {
+        let (n_agents, len, shape) = (self.n_agents, self.len, self.shape);
+        let (grid_len, vec_len, n_actions) = (shape.grid_len(), shape.env_vec, shape.n_actions);
+        for t in 0..n_obs {
+            let src_t = from + t;
+            for agent_idx in 0..n_agents {
+                let dst = (b * n_agents + agent_idx) * (len + 1) + t;
+                let src = src_t * n_agents + agent_idx;
+                self.grid[dst * grid_len..(dst + 1) * grid_len]
+                    .copy_from_slice(&ep.grid[src * grid_len..(src + 1) * grid_len]);
+                self.vec[dst * vec_len..(dst + 1) * vec_len]
+                    .copy_from_slice(&ep.vec[src * vec_len..(src + 1) * vec_len]);
+                self.action_mask[dst * n_actions..(dst + 1) * n_actions]
+                    .copy_from_slice(&ep.action_mask[src * n_actions..(src + 1) * n_actions]);
+            }
+            let dst = (b * (len + 1) + t) * n_agents;
+            self.order[dst..dst + n_agents]
+                .copy_from_slice(&ep.order[src_t * n_agents..(src_t + 1) * n_agents]);
+            if t + 1 < n_obs {
+                for agent_idx in 0..n_agents {
+                    self.actions[(b * n_agents + agent_idx) * len + t] =
+                        ep.actions[src_t * n_agents + agent_idx];
+                }
+                self.rewards[b * len + t] = ep.rewards[src_t];
+                let last = src_t + 1 == ep.len;
+                self.terminated[b * len + t] = if last && ep.terminated { 1.0 } else { 0.0 };
+                self.filled[b * len + t] = if t >= train_from { 1.0 } else { 0.0 };
+            }
+        }
+    }
+}
+
+/// A bounded FIFO of episodes (capacity in episodes).
+#[derive(Clone, Debug)]
+pub struct Replay {
+    capacity: usize,
+    n_agents: usize,
+    shape: ObsShape,
+    episodes: VecDeque<Episode>,
+}
+
+impl Replay {
+    /// An empty buffer holding at most `capacity` episodes of `n_agents` agents.
+    pub fn new(capacity: usize, n_agents: usize, shape: ObsShape) -> Self {
+        assert!(capacity > 0, "replay capacity must be positive");
+        Self { capacity, n_agents, shape, episodes: VecDeque::with_capacity(capacity.min(1024)) }
+    }
+
+    /// Number of stored episodes.
+    pub fn len(&self) -> usize {
+        self.episodes.len()
+    }
+
+    /// The stored episodes, oldest first.
+    pub fn episodes(&self) -> impl Iterator<Item = &Episode> {
+        self.episodes.iter()
+    }
+
+    /// Whether no episode is stored.
+    pub fn is_empty(&self) -> bool {
+        self.episodes.is_empty()
+    }
+
+    /// Store an episode (of at least one step), evicting the oldest when full.
+    pub fn push(&mut self, episode: Episode) {
+        assert!(episode.len > 0, "an episode needs at least one step");
+        assert_eq!(episode.actions.len(), episode.len * self.n_agents, "agent count mismatch");
+        assert_eq!(
+            episode.grid.len(),
+            (episode.len + 1) * self.n_agents * self.shape.grid_len(),
+            "observation size mismatch"
+        );
+        if self.episodes.len() == self.capacity {
+            self.episodes.pop_front();
+        }
+        self.episodes.push_back(episode);
+    }
+
+    /// Sample `batch` sequences uniformly over episodes (windows: uniform start within the
+    /// episode). Panics if the buffer is empty.
+    pub fn sample(&self, batch: usize, mode: SequenceMode, rng: &mut ChaCha8Rng) -> Batch {
+        assert!(!self.episodes.is_empty(), "sampling from an empty replay buffer");
+        let picks: Vec<usize> =
+            (0..batch).map(|_| rng.random_range(0..self.episodes.len())).collect();
+        let (n_agents, shape) = (self.n_agents, self.shape);
+        match mode {
+            SequenceMode::Episodes => {
+                let len = picks.iter().map(|&idx| self.episodes[idx].len).max().unwrap_or(1);
+                let mut res = Batch::empty(batch, n_agents, len, shape);
+                for (b, &idx) in picks.iter().enumerate() {
+                    let ep = &self.episodes[idx];
+                    res.copy_from(b, ep, 0, ep.len + 1, 0);
+                }
+                res
+            }
+            SequenceMode::Windows { len: window, burn_in } => {
+                assert!(window > 0, "window length must be positive");
+                let mut res = Batch::empty(batch, n_agents, window + burn_in, shape);
+                for (b, &idx) in picks.iter().enumerate() {
+                    let ep = &self.episodes[idx];
+                    let start = rng.random_range(0..ep.len);
+                    let from = start.saturating_sub(burn_in);
+                    let end = (start + window).min(ep.len);
+                    res.copy_from(b, ep, from, end - from + 1, start - from);
+                }
+                res
+            }
+        }
+    }
+}

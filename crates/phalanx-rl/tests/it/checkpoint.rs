@@ -1,0 +1,141 @@
+//! Checkpoints: bit-identical round trip, typed errors.
+
+use std::path::Path;
+
+use burn::tensor::Device;
+use phalanx_rl::checkpoint::{load_policy, read_header};
+use phalanx_rl::{CheckpointError, Learner, ObsBuffers, Policy, QNetConfig};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::corridor::{Corridor, corridor_learner, corridor_net};
+
+/// Greedy actions of a policy on a fixed observation sequence.
+fn greedy_actions(policy: &mut Policy) -> Vec<u8> {
+    let mut obs = ObsBuffers::new(2, phalanx_rl::learner::obs_shape(&corridor_net()));
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let mut actions = vec![0; 2];
+    let mut res = Vec::new();
+    for t in 0..6 {
+        obs.grid.iter_mut().enumerate().for_each(|(idx, it)| *it = ((idx + t) % 3) as f32);
+        obs.vec.iter_mut().enumerate().for_each(|(idx, it)| *it = (idx * t) as f32 * 0.1);
+        policy.act(&obs, 0.0, &mut rng, &mut actions);
+        res.extend_from_slice(&actions);
+    }
+    res
+}
+
+fn trained_learner(device: &Device) -> Learner {
+    let mut config = corridor_learner();
+    config.learning_starts = 2;
+    let mut learner = Learner::new(corridor_net(), config, 2, 9, device);
+    learner.train(&mut Corridor::new(), 60, 10, &mut |_: &'static str, _, _| {});
+    assert!(learner.counters().updates > 0);
+    learner
+}
+
+#[test]
+fn checkpoint_round_trip_is_bit_identical() {
+    let device = crate::train_device();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("learner.ckpt");
+    let mut learner = trained_learner(&device);
+    learner.save(&path).unwrap();
+    assert!(!dir.path().join("learner.ckpt.tmp").exists());
+    let mut loaded = Learner::load(&path, &device).unwrap();
+    assert_eq!(loaded.counters(), learner.counters());
+    assert_eq!(loaded.config(), learner.config());
+
+    // Same Q-values, bit for bit, through the acting path.
+    let q_before = q_values(&learner);
+    let q_after = q_values(&loaded);
+    assert_eq!(q_before, q_after);
+    assert_eq!(greedy_actions(&mut learner.policy()), greedy_actions(&mut loaded.policy()));
+
+    // Same optimiser and RNG state: the next updates (on the same replay) agree.
+    for episode in learner.replay().episodes() {
+        loaded.replay_mut().push(episode.clone());
+    }
+    let a = learner.update().unwrap();
+    let b = loaded.update().unwrap();
+    assert_eq!(a, b);
+    assert_eq!(q_values(&learner), q_values(&loaded));
+
+    // The policy alone loads too.
+    let mut policy = load_policy(&path, &corridor_net(), &crate::plain_device()).unwrap();
+    let _ = greedy_actions(&mut policy);
+}
+
+/// Q-values of the online network on a fixed observation, as raw bits.
+fn q_values(learner: &Learner) -> Vec<u32> {
+    let mut obs = ObsBuffers::new(2, phalanx_rl::learner::obs_shape(&corridor_net()));
+    obs.grid.iter_mut().enumerate().for_each(|(idx, it)| *it = (idx % 2) as f32);
+    obs.vec.fill(0.3);
+    let mut q = vec![0.0; 10];
+    let mut actions = vec![0; 2];
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    learner.policy().act_with_q(&obs, 0.0, &mut rng, &mut actions, &mut q);
+    q.into_iter().map(f32::to_bits).collect()
+}
+
+#[test]
+fn missing_checkpoint_is_a_typed_error() {
+    let err = Learner::load(Path::new("/nonexistent/learner.ckpt"), &crate::train_device())
+        .err()
+        .unwrap();
+    assert!(matches!(err, CheckpointError::Missing { .. }), "{err}");
+}
+
+#[test]
+fn wrong_network_is_a_config_mismatch() {
+    let device = crate::train_device();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("learner.ckpt");
+    Learner::new(corridor_net(), corridor_learner(), 2, 1, &device).save(&path).unwrap();
+    let wrong = QNetConfig { lstm_hidden: 16, ..corridor_net() };
+    let err = load_policy(&path, &wrong, &crate::plain_device()).err().unwrap();
+    assert!(matches!(err, CheckpointError::ConfigMismatch { .. }), "{err}");
+    assert_eq!(read_header(&path).unwrap().net_config, corridor_net());
+}
+
+#[test]
+fn garbage_is_malformed() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("garbage.ckpt");
+    std::fs::write(&path, b"not a checkpoint").unwrap();
+    let err = Learner::load(&path, &crate::train_device()).err().unwrap();
+    assert!(matches!(err, CheckpointError::Malformed { .. }), "{err}");
+}
+
+#[test]
+fn tensors_of_another_network_are_a_record_error() {
+    let device = crate::train_device();
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.ckpt"), dir.path().join("b.ckpt"));
+    Learner::new(corridor_net(), corridor_learner(), 2, 1, &device).save(&a).unwrap();
+    let small = QNetConfig { lstm_hidden: 16, ..corridor_net() };
+    Learner::new(small, corridor_learner(), 2, 1, &device).save(&b).unwrap();
+    // Header of `a`, tensors of `b`.
+    let sections = |path: &Path| {
+        let bytes = std::fs::read(path).unwrap();
+        let mut rest = &bytes[8..];
+        let mut res = Vec::new();
+        while !rest.is_empty() {
+            let len = u64::from_le_bytes(rest[..8].try_into().unwrap()) as usize;
+            res.push(rest[..8 + len].to_vec());
+            rest = &rest[8 + len..];
+        }
+        res
+    };
+    let (sa, sb) = (sections(&a), sections(&b));
+    let mut spliced = b"PHXRLCK1".to_vec();
+    spliced.extend_from_slice(&sa[0]);
+    for section in &sb[1..] {
+        spliced.extend_from_slice(section);
+    }
+    let path = dir.path().join("spliced.ckpt");
+    std::fs::write(&path, spliced).unwrap();
+    let err = Learner::load(&path, &device).err().unwrap();
+    assert!(matches!(err, CheckpointError::Record { section: "online", .. }), "{err}");
+    assert!(err.to_string().contains("shape"), "{err}");
+}

@@ -1,0 +1,20 @@
+//! Integration tests of phalanx-rl: network shapes, learner maths, replay, checkpoints and a toy
+//! cooperative problem the learner must solve.
+
+mod checkpoint;
+mod corridor;
+mod learner;
+mod net;
+mod replay;
+
+use burn::tensor::Device;
+
+/// The test device: burn's pure-Rust CPU backend with autodiff.
+pub(crate) fn train_device() -> Device {
+    Device::flex().autodiff()
+}
+
+/// The test device without autodiff.
+pub(crate) fn plain_device() -> Device {
+    Device::flex()
+}
