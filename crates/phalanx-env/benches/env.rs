@@ -1,0 +1,2 @@
+//! Criterion benchmarks of the environment (placeholder).
+fn main() {}

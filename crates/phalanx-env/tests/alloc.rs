@@ -1,0 +1,2 @@
+//! Counts heap allocations during steady-state steps.
+fn main() {}
