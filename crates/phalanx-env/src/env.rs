@@ -130,7 +130,7 @@ pub struct Env {
 impl Env {
     /// An environment with no episode yet; call [`Env::reset`].
     pub fn new(config: EnvConfig) -> Result<Env, EnvError> {
-        if config.fov < 3 || config.fov % 2 == 0 {
+        if config.fov < 3 || config.fov.is_multiple_of(2) {
             return Err(EnvError::Fov(config.fov));
         }
         let fov = config.fov as usize;

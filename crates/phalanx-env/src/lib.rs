@@ -29,3 +29,4 @@ mod formation;
 mod pool;
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use pool::{EvalConfig, EvalMaps, PoolConfig, TrainPool, eval_seed, train_seed};
+pub mod sim;
