@@ -4,6 +4,8 @@
 
 mod mater;
 mod reference;
+mod replay;
+mod turns;
 
 use phalanx_core::{Cell, Grid, Instance};
 
