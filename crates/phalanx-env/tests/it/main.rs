@@ -2,9 +2,12 @@
 //! implementation against the fast one, plan replays, sequential acting, batches, pools and
 //! the `sim` command.
 
+mod batch;
 mod mater;
+mod pool;
 mod reference;
 mod replay;
+mod rewards;
 mod turns;
 
 use phalanx_core::{Cell, Grid, Instance};
