@@ -72,14 +72,16 @@ fn bench_steps(c: &mut Criterion, name: &str, inst: &Instance, fov: u32) {
 }
 
 fn steps(c: &mut Criterion) {
-    let small = generate(&GenConfig { size: 32, density: 0.15, n_agents: 3, seed: 1, fov: 9 }).unwrap();
+    let small =
+        generate(&GenConfig { size: 32, density: 0.15, n_agents: 3, seed: 1, fov: 9 }).unwrap();
     bench_steps(c, "32x32_d0.15_fov9", &small, 9);
     let crowd = crowded(64, 0.3, 64, 11, 2);
     bench_steps(c, "64x64_d0.3_fov11", &crowd, 11);
 }
 
 fn reset(c: &mut Criterion) {
-    let big = generate(&GenConfig { size: 1024, density: 0.15, n_agents: 3, seed: 3, fov: 9 }).unwrap();
+    let big =
+        generate(&GenConfig { size: 1024, density: 0.15, n_agents: 3, seed: 3, fov: 9 }).unwrap();
     let mut env = Env::new(EnvConfig::default()).unwrap();
     let mut group = c.benchmark_group("env_reset");
     group.sample_size(20);

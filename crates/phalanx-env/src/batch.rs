@@ -34,6 +34,8 @@ pub struct BatchEnv {
     obs: ObsBuf,
     rewards: Vec<f32>,
     outcomes: Vec<Outcome>,
+    /// Episodes whose messages were written since they were last cleared.
+    messages_written: Vec<bool>,
 }
 
 impl BatchEnv {
@@ -53,6 +55,7 @@ impl BatchEnv {
             obs: ObsBuf::new(layout, n_envs),
             rewards: vec![0.0; n_envs * n_agents],
             outcomes: vec![Outcome::default(); n_envs],
+            messages_written: vec![false; n_envs],
         })
     }
 
@@ -101,7 +104,10 @@ impl BatchEnv {
             });
         }
         self.envs[env].reset(instance)?;
-        self.envs[env].observe(&mut self.obs.env_mut(env));
+        let mut obs = self.obs.env_mut(env);
+        self.envs[env].observe(&mut obs);
+        obs.message.fill(0.0);
+        self.messages_written[env] = false;
         self.rewards[env * self.layout.n_agents..(env + 1) * self.layout.n_agents].fill(0.0);
         self.outcomes[env] = Outcome::default();
         Ok(())
@@ -124,6 +130,8 @@ impl BatchEnv {
         results.into_iter().collect::<Result<(), EnvError>>()?;
         self.rewards.fill(0.0);
         self.outcomes.fill(Outcome::default());
+        self.obs.message.fill(0.0);
+        self.messages_written.fill(false);
         self.for_each_env(|_, env, obs, _, _| env.observe(obs));
         Ok(())
     }
@@ -137,6 +145,7 @@ impl BatchEnv {
     pub fn step(&mut self, actions: &[Action]) {
         let n = self.layout.n_agents;
         assert_eq!(actions.len(), self.envs.len() * n, "one action per agent per episode");
+        self.clear_messages();
         self.for_each_env(|i, env, obs, rewards, outcome| {
             if env.is_done() {
                 rewards.fill(0.0);
@@ -158,11 +167,11 @@ impl BatchEnv {
     /// Starts sequential acting in every running episode (SPEC §6): computes each
     /// episode's order under `rule`. Messages are zero until agents choose.
     pub fn begin_turns(&mut self, rule: LeaderRule) {
-        self.for_each_env(|_, env, obs, _, _| {
+        self.clear_messages();
+        self.for_each_env(|_, env, _, _, _| {
             if !env.is_done() {
                 env.begin_turns(rule);
             }
-            obs.message.fill(0.0);
         });
     }
 
@@ -189,6 +198,7 @@ impl BatchEnv {
             if let Some(next) = env.choose(action) {
                 let at = (i * self.layout.n_agents + next) * len;
                 env.write_message(next, &mut self.obs.message[at..at + len]);
+                self.messages_written[i] = true;
             }
         }
     }
@@ -198,6 +208,7 @@ impl BatchEnv {
     /// # Panics
     /// If some agent of a running episode has not chosen.
     pub fn step_chosen(&mut self) {
+        self.clear_messages();
         self.for_each_env(|_, env, obs, rewards, outcome| {
             if env.is_done() {
                 rewards.fill(0.0);
@@ -214,6 +225,16 @@ impl BatchEnv {
             };
             env.observe(obs);
         });
+    }
+
+    /// Zeroes the messages of the episodes that wrote some.
+    fn clear_messages(&mut self) {
+        let len = self.layout.message_len();
+        for (i, written) in self.messages_written.iter_mut().enumerate() {
+            if std::mem::take(written) {
+                self.obs.message[i * len..(i + 1) * len].fill(0.0);
+            }
+        }
     }
 
     /// Runs `f` on every episode with its index, observation slices, reward slice and

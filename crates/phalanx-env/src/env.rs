@@ -20,8 +20,10 @@ pub const MAX_AGENTS: usize = u16::MAX as usize - 1;
 const NONE: u16 = u16::MAX;
 /// Claim value of a cell that two or more agents want.
 const MULTI: u16 = u16::MAX - 1;
-/// Distance of a blocked, outside or cut-off cell.
+/// Distance of a free cell cut off from the goal.
 const UNREACHABLE: u32 = u32::MAX;
+/// Distance of a blocked or outside cell (so the BFS reads one array, not two).
+const BLOCKED: u32 = u32::MAX - 1;
 
 /// Table I of the paper, per agent per step.
 mod reward {
@@ -118,6 +120,8 @@ pub struct Env {
     done: bool,
     rewards: Vec<f32>,
     cancelled: Vec<bool>,
+    /// Whether each agent's move lowered its distance to its goal this step.
+    closer: Vec<bool>,
     on_goal: Vec<bool>,
     loss: f64,
     // Sequential acting.
@@ -161,6 +165,7 @@ impl Env {
             done: true,
             rewards: Vec::new(),
             cancelled: Vec::new(),
+            closer: Vec::new(),
             on_goal: Vec::new(),
             loss: 0.0,
             order: Vec::new(),
@@ -213,12 +218,18 @@ impl Env {
         self.starts.extend_from_slice(instance.starts());
         self.goal_idx.clear();
         self.goal_idx.extend(self.goals.iter().map(|&g| padded_idx(pw, pad, g)));
-        // Distance maps.
-        self.dist.clear();
+        // Distance maps, each from a template with the blocked cells marked.
         self.dist.resize(n * n_padded, UNREACHABLE);
+        let (template, maps) = self.dist.split_at_mut(n_padded);
+        for (d, &b) in template.iter_mut().zip(&self.blocked) {
+            *d = if b != 0 { BLOCKED } else { UNREACHABLE };
+        }
+        for map in maps.chunks_exact_mut(n_padded) {
+            map.copy_from_slice(template);
+        }
         for (agent, &goal) in self.goal_idx.iter().enumerate() {
             let map = &mut self.dist[agent * n_padded..(agent + 1) * n_padded];
-            padded_bfs(&self.blocked, pw, goal, map, &mut self.queue);
+            padded_bfs(pw, goal, map, &mut self.queue);
         }
         // Identity codes and formation channels.
         self.ident.clear();
@@ -256,6 +267,8 @@ impl Env {
         self.rewards.resize(n, 0.0);
         self.cancelled.clear();
         self.cancelled.resize(n, false);
+        self.closer.clear();
+        self.closer.resize(n, false);
         self.on_goal.clear();
         self.on_goal.extend(self.pos_idx.iter().zip(&self.goal_idx).map(|(p, g)| p == g));
         self.loss = formation_loss(&self.pos, &self.goals);
@@ -349,7 +362,7 @@ impl Env {
             return None;
         }
         let d = self.dist[agent * self.n_padded + padded_idx(self.pw, self.pad, cell) as usize];
-        (d != UNREACHABLE).then_some(d)
+        (d < BLOCKED).then_some(d)
     }
 
     /// Agent `agent`'s unscaled goal vector: the unit direction `(dx, dy)` to its goal and
@@ -357,7 +370,7 @@ impl Env {
     pub fn goal_vector(&self, agent: usize) -> [f64; 3] {
         let (p, g) = (self.pos[agent], self.goals[agent]);
         let (dx, dy) = (f64::from(g.x - p.x), f64::from(g.y - p.y));
-        let norm = dx.hypot(dy);
+        let norm = (dx * dx + dy * dy).sqrt();
         if norm == 0.0 { [0.0; 3] } else { [dx / norm, dy / norm, norm] }
     }
 
@@ -380,23 +393,20 @@ impl Env {
         let n_cancelled = self.resolve(actions);
         // Apply: vacate, then occupy (targets are pairwise distinct by now).
         let n_padded = self.n_padded;
-        let mut towards = 0u64;
-        for i in 0..self.pos.len() {
-            let (from, to) = (self.pos_idx[i], self.target[i]);
+        for (&from, &to) in self.pos_idx.iter().zip(&self.target) {
             if from != to {
                 self.occ[from as usize] = NONE;
             }
         }
         for (i, &action) in actions.iter().enumerate() {
             let (from, to) = (self.pos_idx[i], self.target[i]);
+            self.closer[i] = false;
             if from != to {
                 self.occ[to as usize] = i as u16;
                 self.pos_idx[i] = to;
                 self.pos[i] = action.apply(self.pos[i]);
                 let dist = &self.dist[i * n_padded..(i + 1) * n_padded];
-                if dist[to as usize] < dist[from as usize] && i < 64 {
-                    towards |= 1 << i;
-                }
+                self.closer[i] = dist[to as usize] < dist[from as usize];
             }
         }
         self.t += 1;
@@ -426,15 +436,8 @@ impl Env {
                     Task::Meta => 0.0,
                 }
             } else {
-                let closer = if i < 64 {
-                    towards >> i & 1 != 0
-                } else {
-                    let dist = &self.dist[i * n_padded..(i + 1) * n_padded];
-                    let from = padded_idx(self.pw, self.pad, action.reverse().apply(self.pos[i]));
-                    dist[self.pos_idx[i] as usize] < dist[from as usize]
-                };
                 match task {
-                    Task::PathFinding | Task::Meta if closer => reward::TOWARDS_GOAL,
+                    Task::PathFinding | Task::Meta if self.closer[i] => reward::TOWARDS_GOAL,
                     _ => 0.0,
                 }
             };
@@ -526,7 +529,9 @@ impl Env {
     }
 
     /// Writes every agent's observation (channels, goal vector and mask of the task's
-    /// clipping) into one episode's slices and clears the messages.
+    /// clipping) into one episode's slices. Messages are not touched: they are written in
+    /// turns ([`Env::write_message`]) and cleared by whoever wrote them ([`crate::BatchEnv`]
+    /// does).
     ///
     /// # Panics
     /// If the slices do not have this episode's layout.
@@ -547,7 +552,6 @@ impl Env {
             self.write_vector(i, vector);
             self.write_mask(i, clip, mask);
         }
-        out.message.fill(0.0);
     }
 
     /// Writes agent `agent`'s four channels, `[4, F, F]`.
@@ -566,31 +570,30 @@ impl Env {
         let own = dist[p] as i32;
         let k = (f - 1) as i32;
         let inv_k = 1.0 / k as f32;
-        for r in 0..f {
+        let rows = obstacles
+            .chunks_exact_mut(f)
+            .zip(positions.chunks_exact_mut(f))
+            .zip(cost.chunks_exact_mut(f))
+            .enumerate();
+        for (r, ((obstacle_row, position_row), cost_row)) in rows {
             let base = corner + r * pw;
-            let out_row = r * f..(r + 1) * f;
-            for (o, &b) in obstacles[out_row.clone()].iter_mut().zip(&self.blocked[base..base + f])
-            {
+            for (o, &b) in obstacle_row.iter_mut().zip(&self.blocked[base..base + f]) {
                 *o = f32::from(b);
             }
-            for (o, &d) in cost[out_row.clone()].iter_mut().zip(&dist[base..base + f]) {
-                *o = if d == UNREACHABLE {
-                    COST_SENTINEL
-                } else {
-                    (d as i32 - own).clamp(-k, k) as f32 * inv_k
-                };
+            for (o, &d) in cost_row.iter_mut().zip(&dist[base..base + f]) {
+                let rel = (d as i32).wrapping_sub(own).clamp(-k, k) as f32 * inv_k;
+                *o = if d >= BLOCKED { COST_SENTINEL } else { rel };
             }
             let occ = &self.occ[base..base + f];
-            let pos_row = &mut positions[out_row.clone()];
             if occ.iter().all(|&v| v == NONE) {
-                pos_row.fill(0.0);
+                position_row.fill(0.0);
                 continue;
             }
-            for (c, (o, &v)) in pos_row.iter_mut().zip(occ).enumerate() {
+            for ((o, c), &v) in position_row.iter_mut().zip(cost_row.iter_mut()).zip(occ) {
                 *o = match self.ident.get(v as usize) {
                     Some(&id) => {
                         if v as usize != agent && self.on_goal[v as usize] {
-                            cost[r * f + c] = COST_SENTINEL;
+                            *c = COST_SENTINEL;
                         }
                         id
                     }
@@ -743,9 +746,10 @@ fn padded_idx(pw: usize, pad: usize, c: Cell) -> u32 {
     ((c.y as isize + pad as isize) as usize * pw + (c.x as isize + pad as isize) as usize) as u32
 }
 
-/// BFS over the padded grid from `source`; `dist` must be filled with `UNREACHABLE`. The
-/// padding is blocked, so neighbours never leave the buffer.
-fn padded_bfs(blocked: &[u8], pw: usize, source: u32, dist: &mut [u32], queue: &mut Vec<u32>) {
+/// BFS over the padded grid from `source`; `dist` must hold `BLOCKED` on blocked cells
+/// and `UNREACHABLE` on free ones. The padding is blocked, so neighbours never leave the
+/// buffer.
+fn padded_bfs(pw: usize, source: u32, dist: &mut [u32], queue: &mut Vec<u32>) {
     queue.clear();
     dist[source as usize] = 0;
     queue.push(source);
@@ -755,7 +759,7 @@ fn padded_bfs(blocked: &[u8], pw: usize, source: u32, dist: &mut [u32], queue: &
         head += 1;
         let next = dist[id] + 1;
         for n in [id + pw, id - pw, id - 1, id + 1] {
-            if dist[n] == UNREACHABLE && blocked[n] == 0 {
+            if dist[n] == UNREACHABLE {
                 dist[n] = next;
                 queue.push(n as u32);
             }
