@@ -83,6 +83,7 @@ fn reset(c: &mut Criterion) {
     let big =
         generate(&GenConfig { size: 1024, density: 0.15, n_agents: 3, seed: 3, fov: 9 }).unwrap();
     let mut env = Env::new(EnvConfig::default()).unwrap();
+    env.reset(&big).unwrap();
     let mut group = c.benchmark_group("env_reset");
     group.sample_size(20);
     group.bench_function("1024x1024_3_agents", |b| {

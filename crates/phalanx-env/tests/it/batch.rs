@@ -10,11 +10,11 @@ fn pool() -> TrainPool {
     TrainPool::new(&PoolConfig { n_maps: 8, ..PoolConfig::default() }).unwrap()
 }
 
-/// Runs `n_steps` random steps on a 40-episode batch; returns every buffer's bytes.
-fn run(
-    instances: &[Instance],
-    n_steps: usize,
-) -> (Vec<f32>, Vec<f32>, Vec<bool>, Vec<f32>, Vec<f32>) {
+/// Every buffer of every step: channels, vectors, masks, rewards, formation losses.
+type Trace = (Vec<f32>, Vec<f32>, Vec<bool>, Vec<f32>, Vec<f32>);
+
+/// Runs `n_steps` random steps on a batch; returns the trace.
+fn run(instances: &[Instance], n_steps: usize) -> Trace {
     let mut batch = BatchEnv::new(EnvConfig::default(), instances.len(), 3).unwrap();
     batch.reset_all(instances).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
