@@ -111,6 +111,9 @@ pub enum SimError {
         /// Agents of the plan.
         found: usize,
     },
+    /// The plan does not begin at the instance's starts.
+    #[error("the plan does not begin at the instance's starts")]
+    PlanStart,
     /// A plan policy needs a given instance.
     #[error("a plan can only be replayed on its own instance")]
     PlanNeedsInstance,
@@ -194,6 +197,11 @@ pub fn rollout(
         && plan.n_agents() != n
     {
         return Err(SimError::PlanAgents { expected: n, found: plan.n_agents() });
+    }
+    if let SimPolicy::Plan(plan) = policy
+        && (plan.is_empty() || plan.at(0) != instance.starts())
+    {
+        return Err(SimError::PlanStart);
     }
     env.reset(instance)?;
     let mut obs = ObsBuf::new(env.layout(), 1);

@@ -70,3 +70,52 @@ fn one_hot(chosen: &[(usize, Action)]) -> Vec<f32> {
     }
     v
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(100))]
+
+    /// The leader order equals a slow sort: by BFS distance, or by the floating-point
+    /// distance to the centroid, then by index.
+    #[test]
+    fn leader_order_matches_a_slow_sort(seed in proptest::prelude::any::<u64>(), steps in 0usize..20) {
+        use phalanx_core::DistanceMap;
+        use rand::{Rng, SeedableRng};
+        let inst = crate::reference::random_instance(seed, 8, 6);
+        let mut env = Env::new(EnvConfig::default()).unwrap();
+        env.reset(&inst).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        for _ in 0..steps {
+            if env.is_done() {
+                break;
+            }
+            let actions: Vec<Action> =
+                (0..inst.n_agents()).map(|_| Action::ALL[rng.random_range(0..5u32) as usize]).collect();
+            env.step(&actions);
+        }
+        let pos = env.positions().to_vec();
+        let n = pos.len();
+        let mut by_cost: Vec<u16> = (0..n as u16).collect();
+        by_cost.sort_by_key(|&i| {
+            let dm = DistanceMap::bfs(inst.grid(), inst.goals()[i as usize]);
+            (dm.get(pos[i as usize]).unwrap(), i)
+        });
+        proptest::prop_assert_eq!(env.begin_turns(LeaderRule::PathFinding), &by_cost[..]);
+        let cx = pos.iter().map(|p| f64::from(p.x)).sum::<f64>() / n as f64;
+        let cy = pos.iter().map(|p| f64::from(p.y)).sum::<f64>() / n as f64;
+        let d = |i: u16| (f64::from(pos[i as usize].x) - cx).hypot(f64::from(pos[i as usize].y) - cy);
+        let mut by_centroid: Vec<u16> = (0..n as u16).collect();
+        by_centroid.sort_by(|&a, &b| d(a).total_cmp(&d(b)).then(a.cmp(&b)));
+        let order = env.begin_turns(LeaderRule::Formation).to_vec();
+        // Equal up to floating-point ties: the keys along the order never decrease.
+        for w in order.windows(2) {
+            proptest::prop_assert!(d(w[0]) <= d(w[1]) + 1e-9);
+        }
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        proptest::prop_assert_eq!(sorted, (0..n as u16).collect::<Vec<_>>());
+        let near_tie = (0..n as u16).any(|a| (0..a).any(|b| (d(a) - d(b)).abs() < 1e-9));
+        if !near_tie {
+            proptest::prop_assert_eq!(order, by_centroid);
+        }
+    }
+}
