@@ -8,6 +8,7 @@ mod pool;
 mod reference;
 mod replay;
 mod rewards;
+mod sim;
 mod turns;
 
 use phalanx_core::{Cell, Grid, Instance};
