@@ -1,2 +1,65 @@
-//! The `phalanx` command-line tool.
-fn main() {}
+//! The `phalanx` command-line tool: generate, inspect and validate formation MAPF instances
+//! and plans.
+//!
+//! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
+//! `run(Args) -> anyhow::Result<ExitCode>`; this file only holds the [`Command`] enum and
+//! the dispatch. To add one: write `src/<name>.rs`, add a variant and a match arm.
+//! Exit codes: 0 success, 1 an invalid plan (`validate`), 2 bad input (unreadable or
+//! malformed files, bad flags); see [`util`].
+
+#[path = "gen.rs"]
+mod generate;
+mod info;
+mod util;
+mod validate;
+
+use std::io::Write as _;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Formation multi-agent path finding: instances, plans, metrics.
+#[derive(Debug, Parser)]
+#[command(name = "phalanx", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Generate an instance (SPEC §2) and write it as .yaml, or .scen with its .map beside it.
+    Gen(generate::Args),
+    /// Describe an instance: size, density, agents, formation, shortest distances.
+    Info(info::Args),
+    /// Check a plan against an instance and print its metrics.
+    Validate(validate::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(err) => {
+            // Help and version go to stdout with status 0; usage errors to stderr.
+            let _ = err.print();
+            return if err.use_stderr() {
+                ExitCode::from(util::EXIT_BAD_INPUT)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    let res = match cli.command {
+        Command::Gen(args) => generate::run(args),
+        Command::Info(args) => info::run(args),
+        Command::Validate(args) => validate::run(args),
+    };
+    match res {
+        Ok(code) => code,
+        Err(err) => {
+            let _ = writeln!(std::io::stderr(), "error: {err:#}");
+            ExitCode::from(util::EXIT_BAD_INPUT)
+        }
+    }
+}

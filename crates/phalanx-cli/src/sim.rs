@@ -1,22 +1,27 @@
-//! `phalanx sim`: roll out a scripted policy in the environment and print the validator's
-//! metrics and the simulation speed (the work is `phalanx_env::sim::run`).
+//! `phalanx sim`: roll out a scripted policy (random, greedy or a plan replay) in the
+//! environment and print the validator's metrics and the simulation speed; the work is
+//! `phalanx_env::sim::run`.
 
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, bail};
-use phalanx_core::{Instance, Plan};
+use anyhow::{Context as _, bail};
 use phalanx_env::sim::{SimArgs, SimPolicy, SimReport, SimSource};
 
-/// Simulate episodes with a scripted policy.
+use crate::util;
+
+/// Arguments of `phalanx sim`.
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct SimCmd {
-    /// Instance file to run one episode on; without it, instances are generated.
+    /// Instance file (.yaml/.yml or .scen) to run one episode on; without it, evaluation
+    /// instances are generated (--size, --density, --agents, --episodes).
     instance: Option<PathBuf>,
-    /// Policy: `random`, `greedy` or `plan:PLAN.yaml` (replay a plan).
+    /// Policy: `random`, `greedy` or `plan:PLAN.yaml` (replay a plan of the instance).
     #[arg(long, default_value = "random")]
     policy: String,
+    /// Use only the first N agents of the instance file (default all).
+    #[arg(long, value_name = "N")]
+    agents_of_file: Option<usize>,
     /// Side of generated maps.
     #[arg(long, default_value_t = 32)]
     size: u32,
@@ -29,33 +34,40 @@ pub(crate) struct SimCmd {
     /// Number of generated episodes.
     #[arg(long, default_value_t = 1)]
     episodes: usize,
-    /// Seed of the random policy and of the evaluation stream.
+    /// Seed of the random policy and of the evaluation instance stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Field of view of the observations.
+    /// Field of view of the observations built every step (odd).
     #[arg(long, default_value_t = 9)]
     fov: u32,
-    /// Print the report as JSON.
+    /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
 }
 
 /// Runs `phalanx sim`.
 pub(crate) fn run(cmd: SimCmd) -> anyhow::Result<ExitCode> {
+    let named = match &cmd.instance {
+        Some(path) => Some(util::read_instance(path, cmd.agents_of_file)?),
+        None => None,
+    };
     let policy = match cmd.policy.as_str() {
         "random" => SimPolicy::Random,
         "greedy" => SimPolicy::Greedy,
         other => match other.strip_prefix("plan:") {
-            Some(path) => SimPolicy::Plan(
-                read_plan(Path::new(path)).with_context(|| format!("reading plan {path}"))?,
-            ),
+            Some(path) => {
+                let Some(named) = &named else {
+                    bail!("a plan can only be replayed on its instance: give the instance file");
+                };
+                let plan = phalanx_io::read_plan_for(path.as_ref(), &named.names)
+                    .context("reading the plan")?;
+                SimPolicy::Plan(plan)
+            }
             None => bail!("unknown policy {other:?} (random, greedy or plan:PLAN.yaml)"),
         },
     };
-    let source = match &cmd.instance {
-        Some(path) => SimSource::Instance(
-            read_instance(path).with_context(|| format!("reading instance {}", path.display()))?,
-        ),
+    let source = match named {
+        Some(named) => SimSource::Instance(named.instance),
         None => SimSource::Generated {
             size: cmd.size,
             density: cmd.density,
@@ -65,32 +77,23 @@ pub(crate) fn run(cmd: SimCmd) -> anyhow::Result<ExitCode> {
     };
     let args = SimArgs { source, policy, fov: cmd.fov, seed: cmd.seed };
     let report = phalanx_env::sim::run(&args).context("simulating")?;
-    let mut out = std::io::stdout().lock();
     if cmd.json {
-        serde_json::to_writer_pretty(&mut out, &report)?;
-        writeln!(out)?;
+        util::print_json(&serde_json::to_value(&report)?)?;
     } else {
-        write_text(&mut out, &report)?;
+        util::print(&text(&report))?;
     }
     Ok(ExitCode::SUCCESS)
 }
 
-fn write_text(out: &mut impl Write, r: &SimReport) -> std::io::Result<()> {
-    writeln!(out, "episodes           {}", r.episodes)?;
-    writeln!(out, "success            {:.3}", r.success)?;
-    writeln!(out, "makespan           {:.1}", r.makespan)?;
-    writeln!(out, "collisions         {}", r.collisions)?;
-    writeln!(out, "formation_loss     {:.4}", r.formation_loss)?;
-    writeln!(out, "agent_steps        {}", r.agent_steps)?;
-    writeln!(out, "agent_steps_per_s  {:.0}", r.agent_steps_per_s)
-}
-
-/// Instance files are read by phalanx-io (wired in by the integrator).
-fn read_instance(path: &Path) -> anyhow::Result<Instance> {
-    bail!("reading instance files needs phalanx-io, which cannot read {} yet", path.display())
-}
-
-/// Plan files are read by phalanx-io (wired in by the integrator).
-fn read_plan(path: &Path) -> anyhow::Result<Plan> {
-    bail!("reading plan files needs phalanx-io, which cannot read {} yet", path.display())
+/// The report as a table (aggregates over the episodes).
+fn text(r: &SimReport) -> String {
+    util::table(&[
+        ("episodes", r.episodes.to_string()),
+        ("success", format!("{:.3}", r.success)),
+        ("makespan", format!("{:.1}", r.makespan)),
+        ("collisions", r.collisions.to_string()),
+        ("formation_loss", format!("{:.6} (sum of L_f over steps / map side)", r.formation_loss)),
+        ("agent_steps", r.agent_steps.to_string()),
+        ("agent_steps_per_s", format!("{:.0}", r.agent_steps_per_s)),
+    ])
 }

@@ -1,0 +1,68 @@
+//! Helpers shared by the subcommands: exit codes, reading instances with context, and
+//! printing tables and JSON to stdout.
+
+use std::io::Write as _;
+use std::path::Path;
+
+use anyhow::Context as _;
+use phalanx_io::NamedInstance;
+
+/// The plan is invalid (`validate`).
+pub(crate) const EXIT_INVALID: u8 = 1;
+/// Bad input: unreadable or malformed files, bad flags.
+pub(crate) const EXIT_BAD_INPUT: u8 = 2;
+
+/// Reads an instance, format by extension (`.yaml`/`.yml` or `.scen` with its map);
+/// `n_agents` takes the first entries of a scenario.
+pub(crate) fn read_instance(path: &Path, n_agents: Option<usize>) -> anyhow::Result<NamedInstance> {
+    phalanx_io::read_instance(path, n_agents).context("reading the instance")
+}
+
+/// Writes `text` to stdout; a closed pipe is not an error.
+pub(crate) fn print(text: &str) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(err) if err.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(err).context("writing to stdout")
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Writes one line to stderr (diagnostics that are not errors of the program).
+pub(crate) fn warn(line: &str) {
+    let _ = writeln!(std::io::stderr(), "{line}");
+}
+
+/// Prints one JSON object on one line.
+pub(crate) fn print_json(value: &serde_json::Value) -> anyhow::Result<()> {
+    print(&format!("{value}\n"))
+}
+
+/// Key–value rows with the keys padded to one width.
+pub(crate) fn table(rows: &[(&str, String)]) -> String {
+    let width = rows.iter().map(|(k, _)| k.len()).max().unwrap_or(0);
+    rows.iter().map(|(k, v)| format!("{k:<width$}  {v}\n")).collect()
+}
+
+/// Rows of cells with each column padded to its widest cell (the last is not padded).
+pub(crate) fn columns(rows: &[Vec<String>]) -> String {
+    let n_cols = rows.iter().map(Vec::len).max().unwrap_or(0);
+    let widths: Vec<usize> = (0..n_cols)
+        .map(|c| rows.iter().filter_map(|r| r.get(c)).map(String::len).max().unwrap_or(0))
+        .collect();
+    let mut res = String::new();
+    for row in rows {
+        let mut line = String::new();
+        for (c, cell) in row.iter().enumerate() {
+            if c + 1 == row.len() {
+                line.push_str(cell);
+            } else {
+                line.push_str(&format!("{cell:<w$}  ", w = widths[c]));
+            }
+        }
+        res.push_str(line.trim_end());
+        res.push('\n');
+    }
+    res
+}

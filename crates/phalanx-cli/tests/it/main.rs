@@ -1,0 +1,155 @@
+//! Integration tests of the `phalanx` binary: it runs in a temporary directory and is
+//! checked by exit code, stdout and stderr.
+
+use std::path::Path;
+use std::process::Output;
+
+use phalanx_core::{DistanceMap, Instance, Plan};
+use phalanx_io::PlanStats;
+
+fn phalanx(dir: &Path, args: &[&str]) -> Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("running phalanx")
+}
+
+#[track_caller]
+fn check(out: &Output, code: i32) -> (String, String) {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(code), "stdout:\n{stdout}\nstderr:\n{stderr}");
+    (stdout, stderr)
+}
+
+/// A single agent walking down its BFS gradient to its goal.
+fn walk(inst: &Instance) -> Plan {
+    assert_eq!(inst.n_agents(), 1);
+    let dist = DistanceMap::bfs(inst.grid(), inst.goals()[0]);
+    let mut path = vec![inst.starts()[0]];
+    while *path.last().unwrap() != inst.goals()[0] {
+        let here = *path.last().unwrap();
+        path.push(inst.grid().free_neighbours(here).min_by_key(|&n| dist.raw(n)).unwrap());
+    }
+    Plan::from_paths(&[path])
+}
+
+#[test]
+fn gen_info_validate_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for file in ["inst.yaml", "inst.scen"] {
+        let args = ["gen", "--size", "20", "--density", "0.15", "--agents", "1", "--seed", "7"];
+        let (stdout, _) = check(&phalanx(d, &[&args[..], &["-o", file]].concat()), 0);
+        assert!(stdout.contains("20x20"), "{stdout}");
+        let (info, _) = check(&phalanx(d, &["info", file]), 0);
+        assert!(info.contains("size       20x20") && info.contains("agents     1"), "{info}");
+        assert!(info.contains("formation") && info.contains("agent0"), "{info}");
+
+        let named = phalanx_io::read_instance(&d.join(file), None).unwrap();
+        let plan = walk(&named.instance);
+        phalanx_io::write_plan(&d.join("plan.yaml"), &plan, &PlanStats::of(&plan, 0.0)).unwrap();
+        let (table, _) = check(&phalanx(d, &["validate", file, "plan.yaml"]), 0);
+        assert!(table.starts_with("valid plan\nsuccess"), "{table}");
+        let (json, _) = check(&phalanx(d, &["validate", file, "plan.yaml", "--json"]), 0);
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(v["success"], true);
+        assert_eq!(v["n_agents"], 1);
+        assert_eq!(v["makespan"], plan.horizon());
+        assert_eq!(v["sum_of_costs"], plan.horizon());
+        assert_eq!(v["formation_loss"], 0.0);
+        for key in ["formation_loss_mean", "formation_loss_max"] {
+            assert!(v[key].is_f64(), "{key} in {json}");
+        }
+    }
+    assert!(d.join("inst.map").is_file());
+}
+
+const INSTANCE: &str = "\
+map:
+  dimensions: [4, 3]
+  obstacles:
+  - [1, 1]
+agents:
+- name: left
+  start: [0, 0]
+  goal: [0, 2]
+- name: right
+  start: [2, 0]
+  goal: [2, 2]
+";
+
+/// Both agents walk up their columns side by side: a valid, formation-keeping plan.
+const PLAN: &str = "\
+schedule:
+  right:
+    - {x: 2, y: 0, t: 0}
+    - {x: 2, y: 1, t: 1}
+    - {x: 2, y: 2, t: 2}
+  left:
+    - {x: 0, y: 0, t: 0}
+    - {x: 0, y: 1, t: 1}
+    - {x: 0, y: 2, t: 2}
+";
+
+#[test]
+fn hand_made_plan_and_its_metrics() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("i.yaml"), INSTANCE).unwrap();
+    std::fs::write(d.join("p.yaml"), PLAN).unwrap();
+    let (json, _) = check(&phalanx(d, &["validate", "i.yaml", "p.yaml", "--json"]), 0);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!((v["makespan"].as_u64(), v["sum_of_costs"].as_u64()), (Some(2), Some(4)));
+    assert_eq!(v["formation_loss"], 0.0);
+    let (info, _) = check(&phalanx(d, &["info", "i.yaml"]), 0);
+    assert!(info.contains("  0.1\n"), "{info}");
+    assert!(info.contains("right  (2, 0)  (2, 2)  2"), "{info}");
+}
+
+#[test]
+fn invalid_plans_exit_1_naming_the_violation() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("i.yaml"), INSTANCE).unwrap();
+    let through_wall = PLAN.replace("{x: 0, y: 1, t: 1}", "{x: 1, y: 1, t: 1}");
+    std::fs::write(d.join("p.yaml"), through_wall).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["validate", "i.yaml", "p.yaml"]), 1);
+    assert_eq!(stderr, "invalid plan: step 1, agent 0: (1, 1) is an obstacle\n");
+    let (json, _) = check(&phalanx(d, &["validate", "i.yaml", "p.yaml", "--json"]), 1);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["valid"], false);
+    let collide = PLAN.replace("{x: 0, y: 2, t: 2}", "{x: 0, y: 1, t: 2}");
+    std::fs::write(d.join("p.yaml"), collide).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["validate", "i.yaml", "p.yaml"]), 1);
+    assert!(stderr.contains("step 2, agent 0: ends at (0, 1), not on its goal (0, 2)"), "{stderr}");
+}
+
+#[test]
+fn bad_input_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("i.yaml"), INSTANCE).unwrap();
+    std::fs::write(d.join("p.yaml"), PLAN).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["validate", "none.yaml", "p.yaml"]), 2);
+    assert!(stderr.starts_with("error: reading the instance: none.yaml: "), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["validate", "i.yaml", "p.yaml", "--bogus"]), 2);
+    assert!(stderr.contains("--bogus"), "{stderr}");
+    check(&phalanx(d, &["frobnicate"]), 2);
+    check(&phalanx(d, &["--help"]), 0);
+    std::fs::write(d.join("bad.yaml"), "map:\n  dimensions: [4, 3]\n").unwrap();
+    let (_, stderr) = check(&phalanx(d, &["info", "bad.yaml"]), 2);
+    assert_eq!(stderr, "error: reading the instance: bad.yaml:1: missing field `agents`\n");
+    let one = PLAN.split("  left:").next().unwrap();
+    std::fs::write(d.join("one.yaml"), one).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["validate", "i.yaml", "one.yaml"]), 2);
+    assert_eq!(
+        stderr,
+        "error: reading the plan: one.yaml:1: the plan has 1 agents, the instance has 2\n"
+    );
+    let (_, stderr) = check(&phalanx(d, &["gen", "--size", "3", "-o", "x.yaml"]), 2);
+    assert!(stderr.contains("map size 3 is out of range"), "{stderr}");
+    check(&phalanx(d, &["gen", "-o", "x.txt"]), 2);
+    assert!(!d.join("x.yaml").exists());
+}
