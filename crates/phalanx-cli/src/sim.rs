@@ -19,18 +19,16 @@ pub(crate) struct SimCmd {
     /// Policy: `random`, `greedy` or `plan:PLAN.yaml` (replay a plan of the instance).
     #[arg(long, default_value = "random")]
     policy: String,
-    /// Use only the first N agents of the instance file (default all).
-    #[arg(long, value_name = "N")]
-    agents_of_file: Option<usize>,
     /// Side of generated maps.
     #[arg(long, default_value_t = 32)]
     size: u32,
     /// Obstacle density of generated maps.
     #[arg(long, default_value_t = 0.15)]
     density: f64,
-    /// Agents of generated instances.
-    #[arg(long, default_value_t = 3)]
-    agents: usize,
+    /// Agents: of generated instances (default 3), or the first N of the instance file
+    /// (default all).
+    #[arg(long, value_name = "N")]
+    agents: Option<usize>,
     /// Number of generated episodes.
     #[arg(long, default_value_t = 1)]
     episodes: usize,
@@ -48,7 +46,7 @@ pub(crate) struct SimCmd {
 /// Runs `phalanx sim`.
 pub(crate) fn run(cmd: SimCmd) -> anyhow::Result<ExitCode> {
     let named = match &cmd.instance {
-        Some(path) => Some(util::read_instance(path, cmd.agents_of_file)?),
+        Some(path) => Some(util::read_instance(path, cmd.agents)?),
         None => None,
     };
     let policy = match cmd.policy.as_str() {
@@ -71,7 +69,7 @@ pub(crate) fn run(cmd: SimCmd) -> anyhow::Result<ExitCode> {
         None => SimSource::Generated {
             size: cmd.size,
             density: cmd.density,
-            n_agents: cmd.agents,
+            n_agents: cmd.agents.unwrap_or(3),
             episodes: cmd.episodes,
         },
     };
