@@ -238,12 +238,30 @@ impl BatchEnv {
     }
 
     /// Runs `f` on every episode with its index, observation slices, reward slice and
-    /// outcome, in parallel chunks.
+    /// outcome: in parallel chunks, or on the calling thread when rayon has one thread
+    /// (handing work to a one-thread pool only adds two context switches per step).
     fn for_each_env(
         &mut self,
         f: impl Fn(usize, &mut Env, &mut ObsSlices<'_>, &mut [f32], &mut Outcome) + Sync,
     ) {
         let l = self.layout;
+        if rayon::current_num_threads() == 1 {
+            let parts = self
+                .envs
+                .iter_mut()
+                .zip(self.obs.grid.chunks_exact_mut(l.grid_len()))
+                .zip(self.obs.vector.chunks_exact_mut(l.vector_len()))
+                .zip(self.obs.message.chunks_exact_mut(l.message_len()))
+                .zip(self.obs.mask.chunks_exact_mut(l.mask_len()))
+                .zip(self.rewards.chunks_exact_mut(l.n_agents))
+                .zip(self.outcomes.iter_mut())
+                .enumerate();
+            for (i, ((((((env, grid), vector), message), mask), rewards), outcome)) in parts {
+                let mut obs = ObsSlices { grid, vector, message, mask };
+                f(i, env, &mut obs, rewards, outcome);
+            }
+            return;
+        }
         self.envs
             .par_iter_mut()
             .zip(self.obs.grid.par_chunks_mut(l.grid_len()))
