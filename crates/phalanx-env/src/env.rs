@@ -567,9 +567,11 @@ impl Env {
         let p = self.pos_idx[agent] as usize;
         let corner = p - self.pad * pw - self.pad;
         let dist = &self.dist[agent * self.n_padded..(agent + 1) * self.n_padded];
-        let own = dist[p] as i32;
-        let k = (f - 1) as i32;
-        let inv_k = 1.0 / k as f32;
+        // Distances below 2^24 are exact in f32, so clamping in f32 equals clamping the
+        // integer difference (and vectorises without SSE4.1's integer min/max).
+        let own = dist[p] as f32;
+        let k = (f - 1) as f32;
+        let inv_k = 1.0 / k;
         let rows = obstacles
             .chunks_exact_mut(f)
             .zip(positions.chunks_exact_mut(f))
@@ -581,11 +583,13 @@ impl Env {
                 *o = f32::from(b);
             }
             for (o, &d) in cost_row.iter_mut().zip(&dist[base..base + f]) {
-                let rel = (d as i32).wrapping_sub(own).clamp(-k, k) as f32 * inv_k;
+                let rel = ((d as i32) as f32 - own).clamp(-k, k) * inv_k;
                 *o = if d >= BLOCKED { COST_SENTINEL } else { rel };
             }
             let occ = &self.occ[base..base + f];
-            if occ.iter().all(|&v| v == NONE) {
+            // All `NONE` (all bits set) exactly when the AND of the row is `NONE`; unlike
+            // an early-exit search, the fold vectorises.
+            if occ.iter().fold(NONE, |acc, &v| acc & v) == NONE {
                 position_row.fill(0.0);
                 continue;
             }
