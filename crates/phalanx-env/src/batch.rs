@@ -136,6 +136,23 @@ impl BatchEnv {
         Ok(())
     }
 
+    /// Resets every ended episode (and every episode never reset) on `sample(index)`,
+    /// in index order, so a seeded sampler gives the same episodes on any thread count;
+    /// returns how many were reset.
+    pub fn reset_done(
+        &mut self,
+        mut sample: impl FnMut(usize) -> Instance,
+    ) -> Result<usize, EnvError> {
+        let mut n_reset = 0;
+        for i in 0..self.envs.len() {
+            if self.envs[i].is_done() {
+                self.reset(i, &sample(i))?;
+                n_reset += 1;
+            }
+        }
+        Ok(n_reset)
+    }
+
     /// Steps every running episode with its agents' actions (`[n_envs, n_agents]`, agent
     /// order) and writes the observations. An ended episode is left as it is (zero
     /// rewards, its last outcome kept) until it is reset.

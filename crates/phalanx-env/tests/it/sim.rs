@@ -103,3 +103,23 @@ fn batch_skips_ended_episodes_until_reset() {
     let two = instance(3, 1, &[], &[c(0, 0), c(2, 0)], &[c(1, 0), c(2, 0)]);
     assert_eq!(batch.reset(1, &two), Err(EnvError::AgentCount { expected: 1, found: 2 }));
 }
+
+#[test]
+fn reset_done_restarts_only_ended_episodes() {
+    let short = instance(3, 1, &[], &[c(0, 0)], &[c(1, 0)]);
+    let long = instance(5, 1, &[], &[c(0, 0)], &[c(4, 0)]);
+    let mut batch = BatchEnv::new(EnvConfig::default(), 3, 1).unwrap();
+    assert_eq!(batch.reset_done(|_| short.clone()).unwrap(), 3);
+    batch.reset(2, &long).unwrap();
+    batch.step(&[Action::Right, Action::Wait, Action::Right]);
+    let mut seen = Vec::new();
+    let n = batch
+        .reset_done(|i| {
+            seen.push(i);
+            long.clone()
+        })
+        .unwrap();
+    assert_eq!((n, seen), (1, vec![0]));
+    assert_eq!(batch.env(0).goals(), &[c(4, 0)]);
+    assert_eq!(batch.env(1).positions(), &[c(0, 0)]);
+}
