@@ -9,12 +9,16 @@
 
 use phalanx_core::{Action, Cell, Instance, formation_loss};
 use phalanx_gen::GenConfig;
+use rayon::prelude::*;
 
 use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, ObsBuf, ObsLayout, ObsSlices, VECTOR_LEN};
 use crate::{Clip, EnvConfig, EnvError, LeaderRule, Task};
 
 /// Most agents in one episode: two `u16` values are reserved in the occupancy grid.
 pub const MAX_AGENTS: usize = u16::MAX as usize - 1;
+
+/// Padded cells from which the agents' BFS maps are computed in parallel on reset.
+const PARALLEL_BFS_CELLS: usize = 1 << 16;
 
 /// Occupancy value of an empty cell.
 const NONE: u16 = u16::MAX;
@@ -106,7 +110,8 @@ pub struct Env {
     ident: Vec<f32>,
     /// Per agent, its precomputed formation channel (`F · F`).
     formation_obs: Vec<f32>,
-    queue: Vec<u32>,
+    /// One BFS queue per agent.
+    queues: Vec<Vec<u32>>,
     // Dynamic state.
     pos: Vec<Cell>,
     pos_idx: Vec<u32>,
@@ -154,7 +159,7 @@ impl Env {
             starts: Vec::new(),
             ident: Vec::new(),
             formation_obs: Vec::new(),
-            queue: Vec::new(),
+            queues: Vec::new(),
             pos: Vec::new(),
             pos_idx: Vec::new(),
             occ: Vec::new(),
@@ -227,9 +232,19 @@ impl Env {
         for map in maps.chunks_exact_mut(n_padded) {
             map.copy_from_slice(template);
         }
-        for (agent, &goal) in self.goal_idx.iter().enumerate() {
-            let map = &mut self.dist[agent * n_padded..(agent + 1) * n_padded];
-            padded_bfs(pw, goal, map, &mut self.queue);
+        // One BFS per agent, in parallel when the maps are large enough to pay for it.
+        self.queues.resize_with(n, Vec::new);
+        let searches =
+            self.dist.chunks_exact_mut(n_padded).zip(&mut self.queues).zip(&self.goal_idx);
+        if n > 1 && n_padded >= PARALLEL_BFS_CELLS && rayon::current_num_threads() > 1 {
+            let searches: Vec<_> = searches.collect();
+            searches.into_par_iter().for_each(|((map, queue), &goal)| {
+                padded_bfs(pw, goal, map, queue);
+            });
+        } else {
+            for ((map, queue), &goal) in searches {
+                padded_bfs(pw, goal, map, queue);
+            }
         }
         // Identity codes and formation channels.
         self.ident.clear();
