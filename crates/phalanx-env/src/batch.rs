@@ -255,14 +255,15 @@ impl BatchEnv {
     }
 
     /// Runs `f` on every episode with its index, observation slices, reward slice and
-    /// outcome: in parallel chunks, or on the calling thread when rayon has one thread
-    /// (handing work to a one-thread pool only adds two context switches per step).
+    /// outcome: in parallel chunks, or on the calling thread when rayon has one thread or
+    /// the batch is too small to split (handing work to the pool then only adds two
+    /// context switches per step).
     fn for_each_env(
         &mut self,
         f: impl Fn(usize, &mut Env, &mut ObsSlices<'_>, &mut [f32], &mut Outcome) + Sync,
     ) {
         let l = self.layout;
-        if rayon::current_num_threads() == 1 {
+        if rayon::current_num_threads() == 1 || self.envs.len() < 2 * Self::MIN_CHUNK {
             let parts = self
                 .envs
                 .iter_mut()
