@@ -1,0 +1,116 @@
+//! Settings of the environment (the reward task, the field of view, the formation weight and
+//! the step limit) and its typed errors.
+
+use phalanx_gen::GenError;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Which reward of SPEC §5 (the paper's Table I) the environment pays, which action mask it
+/// writes and when an episode is terminated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Task {
+    /// Path finding: reach the goals. Terminated when every agent stands on its goal.
+    #[default]
+    PathFinding,
+    /// Formation keeping: reach the goals' layout anywhere. Terminated when `L_f = 0`.
+    Formation,
+    /// The meta task: reach the goals with `−w_f · L_f` per step. Terminated when every
+    /// agent stands on its goal.
+    Meta,
+}
+
+/// Which moves an agent may choose (SPEC §5 action clipping).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Clip {
+    /// Moves that do not increase the agent's BFS distance to its goal, and `Wait`.
+    PathFinding,
+    /// Moves into a free cell, and `Wait`.
+    Formation,
+    /// Every action.
+    None,
+}
+
+impl Task {
+    /// The action clipping of the task: path finding for [`Task::PathFinding`], formation
+    /// for [`Task::Formation`], none for [`Task::Meta`].
+    pub fn clip(self) -> Clip {
+        match self {
+            Task::PathFinding => Clip::PathFinding,
+            Task::Formation => Clip::Formation,
+            Task::Meta => Clip::None,
+        }
+    }
+
+    /// The leader ordering of the task's policy (SPEC §6); the meta task's caller picks
+    /// the rule of the low-level policy that runs.
+    pub fn leader_rule(self) -> LeaderRule {
+        match self {
+            Task::Formation => LeaderRule::Formation,
+            Task::PathFinding | Task::Meta => LeaderRule::PathFinding,
+        }
+    }
+}
+
+/// The order in which agents act within a step (SPEC §6). Ties are broken by agent index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LeaderRule {
+    /// Smallest BFS distance to the own goal first (the agent in front leads).
+    PathFinding,
+    /// Nearest the centroid of the current positions first (Euclidean, compared exactly in
+    /// integers).
+    Formation,
+}
+
+/// Environment settings. Defaults are the paper's values.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EnvConfig {
+    /// Side `F` of the square field of view, odd and at least 3. Paper: 9.
+    pub fov: u32,
+    /// The reward task. Default: path finding.
+    pub task: Task,
+    /// The meta task's formation weight `w_f` (SPEC §6, Eq. 14); unused by the other tasks.
+    /// Default 1.
+    pub formation_weight: f64,
+    /// Steps after which an episode is truncated; `None` means `3 × map side` (the paper).
+    pub step_limit: Option<u32>,
+}
+
+impl Default for EnvConfig {
+    fn default() -> EnvConfig {
+        EnvConfig { fov: 9, task: Task::PathFinding, formation_weight: 1.0, step_limit: None }
+    }
+}
+
+/// Why the environment cannot be built or reset.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum EnvError {
+    /// The field of view is even or below 3.
+    #[error("field of view {0} must be odd and at least 3")]
+    Fov(u32),
+    /// The instance has more agents than the occupancy grid can name.
+    #[error("too many agents: {0} (at most {max})", max = crate::MAX_AGENTS)]
+    TooManyAgents(usize),
+    /// A batch mixes instances with different numbers of agents.
+    #[error("the batch has {expected} agents per episode but the instance has {found}")]
+    AgentCount {
+        /// Agents per episode of the batch.
+        expected: usize,
+        /// Agents of the instance.
+        found: usize,
+    },
+    /// The generator refused the settings.
+    #[error(transparent)]
+    Gen(#[from] GenError),
+    /// No valid formation-training placement came out.
+    #[error("no formation-training placement of {n_agents} agents after {attempts} attempts")]
+    Placement {
+        /// Agents to place.
+        n_agents: usize,
+        /// Attempts made.
+        attempts: u32,
+    },
+}

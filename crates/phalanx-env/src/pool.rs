@@ -1,0 +1,192 @@
+//! Training and evaluation maps (SPEC §5), kept apart by construction.
+//!
+//! A [`TrainPool`] holds 100 (by default) 32×32 maps of density 0.15 generated from seeds of
+//! the *training* stream; [`EvalMaps`] generates instances from seeds of the *evaluation*
+//! stream. Both streams derive a generator seed from an index with SplitMix64 under distinct
+//! domain constants, and the highest bit of a seed names its stream (0 training, 1
+//! evaluation), so no evaluation seed equals a training seed whatever the indices. The two
+//! types share no constructor and no method takes the other's indices.
+
+use phalanx_core::{Cell, Grid, Instance};
+use phalanx_gen::{GenConfig, region_side};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::EnvError;
+
+/// Domain constant of the training stream.
+const TRAIN_DOMAIN: u64 = 0x7068_616c_616e_7854; // "phalanxT"
+/// Domain constant of the evaluation stream.
+const EVAL_DOMAIN: u64 = 0x7068_616c_616e_7845; // "phalanxE"
+/// The bit that marks an evaluation seed.
+const EVAL_BIT: u64 = 1 << 63;
+
+/// SplitMix64's finaliser: a bijection on `u64` that mixes every bit.
+fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// The generator seed of map `index` of the training stream with base seed `base`.
+pub fn train_seed(base: u64, index: u64) -> u64 {
+    splitmix64(splitmix64(TRAIN_DOMAIN ^ base) ^ index) & !EVAL_BIT
+}
+
+/// The generator seed of instance `index` of the evaluation stream with base seed `base`.
+pub fn eval_seed(base: u64, index: u64) -> u64 {
+    splitmix64(splitmix64(EVAL_DOMAIN ^ base) ^ index) | EVAL_BIT
+}
+
+/// Settings of the training pool. Defaults are the paper's (SPEC §5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PoolConfig {
+    /// Number of maps. Paper: 100.
+    pub n_maps: usize,
+    /// Map side. Paper: 32.
+    pub size: u32,
+    /// Obstacle density. Paper: 0.15.
+    pub density: f64,
+    /// Field of view (bounds the wall length). Paper: 9.
+    pub fov: u32,
+    /// Base seed of the training stream. Default 0.
+    pub seed: u64,
+}
+
+impl Default for PoolConfig {
+    fn default() -> PoolConfig {
+        PoolConfig { n_maps: 100, size: 32, density: 0.15, fov: 9, seed: 0 }
+    }
+}
+
+/// The fixed pool of training maps; each episode draws one map and a fresh formation.
+#[derive(Debug, Clone)]
+pub struct TrainPool {
+    config: PoolConfig,
+    maps: Vec<Grid>,
+}
+
+impl TrainPool {
+    /// Generates the pool: map `i` is the generator's map for [`train_seed`]`(seed, i)`.
+    pub fn new(config: &PoolConfig) -> Result<TrainPool, EnvError> {
+        let maps = (0..config.n_maps as u64)
+            .map(|i| {
+                let gen_config = GenConfig {
+                    size: config.size,
+                    density: config.density,
+                    n_agents: 1,
+                    seed: train_seed(config.seed, i),
+                    fov: config.fov,
+                };
+                phalanx_gen::generate(&gen_config).map(|inst| inst.into_parts().0)
+            })
+            .collect::<Result<Vec<Grid>, _>>()?;
+        Ok(TrainPool { config: config.clone(), maps })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &PoolConfig {
+        &self.config
+    }
+
+    /// Number of maps.
+    pub fn len(&self) -> usize {
+        self.maps.len()
+    }
+
+    /// Whether the pool has no maps.
+    pub fn is_empty(&self) -> bool {
+        self.maps.is_empty()
+    }
+
+    /// Map `index`.
+    pub fn map(&self, index: usize) -> &Grid {
+        &self.maps[index]
+    }
+
+    /// A path-finding episode: a map drawn uniformly, `n_agents` distinct cells of the
+    /// start region drawn uniformly, the goals their translate into the goal region (as
+    /// the generator does; SPEC §2).
+    ///
+    /// # Panics
+    /// If the pool is empty or `n_agents` exceeds the start region's cells.
+    pub fn sample(&self, n_agents: usize, rng: &mut ChaCha8Rng) -> Instance {
+        assert!(!self.maps.is_empty(), "empty pool");
+        let grid = &self.maps[rng.random_range(0..self.maps.len() as u32) as usize];
+        let r = region_side(self.config.size);
+        assert!(n_agents >= 1 && n_agents <= (r * r) as usize, "{n_agents} agents do not fit");
+        let mut cells: Vec<Cell> =
+            (0..r * r).map(|i| Cell::new((i % r) as i32, (i / r) as i32)).collect();
+        for i in 0..n_agents {
+            let j = rng.random_range(i as u32..r * r) as usize;
+            cells.swap(i, j);
+        }
+        cells.truncate(n_agents);
+        let far = (self.config.size - r) as i32;
+        let goals = cells.iter().map(|c| c.offset(far, far)).collect();
+        // The regions are free squares and the generator checked one start-goal pair, so
+        // every start reaches every goal.
+        Instance::new(grid.clone(), cells, goals).expect("pool maps connect the two regions")
+    }
+
+    /// A formation-training episode on a map drawn uniformly (see
+    /// [`crate::formation_instance`]).
+    pub fn sample_formation(
+        &self,
+        n_agents: usize,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Instance, EnvError> {
+        let grid = &self.maps[rng.random_range(0..self.maps.len() as u32) as usize];
+        crate::formation_instance(grid, n_agents, self.config.fov, rng)
+    }
+}
+
+/// Settings of the evaluation instances: a problem's inputs, so no defaults.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalConfig {
+    /// Map side.
+    pub size: u32,
+    /// Obstacle density.
+    pub density: f64,
+    /// Agents per instance.
+    pub n_agents: usize,
+    /// Field of view.
+    pub fov: u32,
+    /// Base seed of the evaluation stream.
+    pub seed: u64,
+}
+
+/// Freshly generated evaluation instances, never from the training stream.
+#[derive(Debug, Clone)]
+pub struct EvalMaps {
+    config: EvalConfig,
+}
+
+impl EvalMaps {
+    /// The evaluation stream for `config`.
+    pub fn new(config: EvalConfig) -> EvalMaps {
+        EvalMaps { config }
+    }
+
+    /// The generator seed of instance `index`.
+    pub fn seed(&self, index: u64) -> u64 {
+        eval_seed(self.config.seed, index)
+    }
+
+    /// Generates instance `index`.
+    pub fn instance(&self, index: u64) -> Result<Instance, EnvError> {
+        let c = &self.config;
+        let gen_config = GenConfig {
+            size: c.size,
+            density: c.density,
+            n_agents: c.n_agents,
+            seed: self.seed(index),
+            fov: c.fov,
+        };
+        Ok(phalanx_gen::generate(&gen_config)?)
+    }
+}

@@ -1,0 +1,72 @@
+//! Training pool, evaluation stream and formation-training episodes.
+
+use phalanx_core::formation_loss;
+use phalanx_env::{
+    Env, EnvConfig, EvalConfig, EvalMaps, PoolConfig, Task, TrainPool, eval_seed,
+    formation_instance, train_seed,
+};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+#[test]
+fn training_and_evaluation_seeds_never_meet() {
+    for base in [0, 1, u64::MAX] {
+        for i in 0..10_000 {
+            assert!(train_seed(base, i) >> 63 == 0);
+            assert!(eval_seed(base, i) >> 63 == 1);
+        }
+    }
+    let maps = EvalMaps::new(EvalConfig { size: 32, density: 0.15, n_agents: 3, fov: 9, seed: 0 });
+    assert!((0..100).all(|i| maps.seed(i) != train_seed(0, i)));
+}
+
+#[test]
+fn paper_pool_is_deterministic_and_dense_enough() {
+    let pool = TrainPool::new(&PoolConfig::default()).unwrap();
+    assert_eq!(pool.len(), 100);
+    let again = TrainPool::new(&PoolConfig::default()).unwrap();
+    for i in 0..100 {
+        assert_eq!(pool.map(i), again.map(i));
+        assert_eq!((pool.map(i).width(), pool.map(i).height()), (32, 32));
+        assert!((pool.map(i).density() - 0.15).abs() < 0.01);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    for _ in 0..50 {
+        let inst = pool.sample(5, &mut rng);
+        assert_eq!(formation_loss(inst.starts(), inst.goals()), 0.0);
+    }
+}
+
+#[test]
+fn formation_episodes_see_a_neighbour_and_end_in_formation() {
+    let pool = TrainPool::new(&PoolConfig { n_maps: 10, ..PoolConfig::default() }).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for k in [2, 3, 4, 6] {
+        for _ in 0..20 {
+            let inst = pool.sample_formation(k, &mut rng).unwrap();
+            let s = inst.starts();
+            for i in 0..k {
+                let sees = (0..k).any(|j| {
+                    j != i && s[i].x.abs_diff(s[j].x) <= 4 && s[i].y.abs_diff(s[j].y) <= 4
+                });
+                assert!(sees, "agent {i} sees nobody in {s:?}");
+            }
+            assert!(formation_loss(s, inst.goals()) > 0.0);
+        }
+    }
+    // Walking every agent to its goal ends the formation episode at L_f = 0 at the latest.
+    let inst = formation_instance(pool.map(0), 3, 9, &mut rng).unwrap();
+    let mut env = Env::new(EnvConfig { task: Task::Formation, ..EnvConfig::default() }).unwrap();
+    env.reset(&inst).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let (trajectory, _) =
+        phalanx_env::sim::rollout(&mut env, &inst, &phalanx_env::sim::SimPolicy::Greedy, &mut rng)
+            .unwrap();
+    let last = trajectory.at(trajectory.horizon());
+    let ended_in_formation = formation_loss(last, inst.goals()) == 0.0;
+    assert!(ended_in_formation || trajectory.horizon() == env.step_limit() as usize);
+    assert_eq!(
+        ended_in_formation,
+        (0..trajectory.horizon()).all(|t| formation_loss(trajectory.at(t), inst.goals()) > 0.0)
+    );
+}

@@ -1,0 +1,98 @@
+//! The rewards of Table I, per task, on hand-made corridors.
+
+use phalanx_core::Action::{Left, Right, Wait};
+use phalanx_env::{Clip, Env, EnvConfig, ObsBuf, Task};
+
+use crate::{c, instance};
+
+fn env(task: Task) -> Env {
+    Env::new(EnvConfig { task, formation_weight: 2.0, ..EnvConfig::default() }).unwrap()
+}
+
+#[test]
+fn path_finding_rewards_and_termination() {
+    // Agent 0: (0,0) -> (2,0); agent 1: (4,0) -> (3,0). One row, 5 cells.
+    let inst = instance(5, 1, &[], &[c(0, 0), c(4, 0)], &[c(2, 0), c(3, 0)]);
+    let mut env = env(Task::PathFinding);
+    env.reset(&inst).unwrap();
+    let step = env.step(&[Right, Wait]);
+    assert_eq!(step.rewards, &[1.0, -0.25]);
+    assert_eq!(step.team_reward, 0.75);
+    // Agent 1 moves away from its goal (0), agent 0 moves towards (+1).
+    let step = env.step(&[Right, Right]);
+    assert_eq!(step.rewards, &[1.0, -50.0]);
+    assert!(!step.terminated);
+    let step = env.step(&[Wait, Left]);
+    assert!(step.terminated && !step.truncated);
+    assert_eq!(step.rewards, &[-0.25 + 100.0, 1.0 + 100.0]);
+}
+
+#[test]
+fn formation_rewards_and_termination() {
+    // Goals side by side; agent 1 starts two cells away from agent 0.
+    let inst = instance(6, 1, &[], &[c(0, 0), c(2, 0)], &[c(4, 0), c(5, 0)]);
+    let mut env = env(Task::Formation);
+    env.reset(&inst).unwrap();
+    let step = env.step(&[Wait, Right]);
+    let lf = step.info.formation_loss as f32;
+    assert!(lf > 0.0);
+    assert_eq!(step.rewards, &[-0.25 - lf, -lf]);
+    // (1, 0) and (2, 0): side by side again.
+    let step = env.step(&[Right, Left]);
+    assert_eq!(step.info.formation_loss, 0.0);
+    assert!(step.terminated);
+    assert_eq!(step.rewards, &[100.0, 100.0]);
+}
+
+#[test]
+fn meta_rewards_weight_the_formation_loss() {
+    let inst = instance(6, 1, &[], &[c(0, 0), c(1, 0)], &[c(4, 0), c(5, 0)]);
+    let mut env = env(Task::Meta);
+    env.reset(&inst).unwrap();
+    let step = env.step(&[Wait, Right]);
+    let lf = step.info.formation_loss as f32;
+    assert!(lf > 0.0);
+    assert_eq!(step.rewards, &[-2.0 * lf, 1.0 - 2.0 * lf]);
+}
+
+#[test]
+fn truncated_at_three_times_the_side() {
+    let inst = instance(4, 2, &[], &[c(0, 0)], &[c(3, 1)]);
+    let mut env = env(Task::PathFinding);
+    env.reset(&inst).unwrap();
+    assert_eq!(env.step_limit(), 12);
+    for t in 1..=12 {
+        let step = env.step(&[Wait]);
+        assert!(!step.terminated);
+        assert_eq!(step.truncated, t == 12);
+    }
+    assert!(env.is_done());
+}
+
+#[test]
+fn masks_follow_the_clipping() {
+    // . . .
+    // . # .     agent at (0,0), goal (2,2)
+    // a . .
+    let inst = instance(3, 3, &[c(1, 1)], &[c(0, 0)], &[c(2, 2)]);
+    for (task, expected) in [
+        (Task::PathFinding, [true, false, false, true, true]),
+        (Task::Formation, [true, false, false, true, true]),
+        (Task::Meta, [true; 5]),
+    ] {
+        let mut env = env(task);
+        env.reset(&inst).unwrap();
+        let mut obs = ObsBuf::new(env.layout(), 1);
+        env.observe_into(&mut obs);
+        assert_eq!(obs.agent_mask(0, 0), &expected, "{task:?}");
+    }
+    // Path-finding clipping forbids moving away: from (1, 0) Left goes up the gradient.
+    let inst = instance(3, 3, &[c(1, 1)], &[c(1, 0)], &[c(2, 2)]);
+    let mut env = env(Task::PathFinding);
+    env.reset(&inst).unwrap();
+    let mut mask = [false; 5];
+    env.write_mask(0, Clip::PathFinding, &mut mask);
+    assert_eq!(mask, [false, false, false, true, true]);
+    env.write_mask(0, Clip::Formation, &mut mask);
+    assert_eq!(mask, [false, false, true, true, true]);
+}
