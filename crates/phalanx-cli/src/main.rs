@@ -1,5 +1,5 @@
 //! The `phalanx` command-line tool: generate, inspect and validate formation MAPF instances
-//! and plans.
+//! and plans, simulate episodes and run the planners.
 //!
 //! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
 //! `run(Args) -> anyhow::Result<ExitCode>`; this file only holds the [`Command`] enum and
@@ -10,6 +10,7 @@
 #[path = "gen.rs"]
 mod generate;
 mod info;
+mod sim;
 mod util;
 mod validate;
 
@@ -35,6 +36,8 @@ enum Command {
     Info(info::Args),
     /// Check a plan against an instance and print its metrics.
     Validate(validate::Args),
+    /// Run episodes in the simulation environment with a scripted policy or a plan replay.
+    Sim(sim::SimCmd),
 }
 
 fn main() -> ExitCode {
@@ -54,6 +57,7 @@ fn main() -> ExitCode {
         Command::Gen(args) => generate::run(args),
         Command::Info(args) => info::run(args),
         Command::Validate(args) => validate::run(args),
+        Command::Sim(cmd) => sim::run(cmd),
     };
     match res {
         Ok(code) => code,
