@@ -1,0 +1,3 @@
+//! Criterion benchmark of CBS on seeded formation instances.
+
+fn main() {}

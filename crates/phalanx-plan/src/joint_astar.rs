@@ -1,0 +1,1 @@
+//! Joint-state A* (operator decomposition); written by the joint-search owner.

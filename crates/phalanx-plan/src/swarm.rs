@@ -1,0 +1,1 @@
+//! SWARM-MAPF; written by the swarm owner.
