@@ -29,9 +29,11 @@ mod budget;
 pub mod cbs;
 pub mod ecbs;
 pub mod joint_astar;
+pub mod planner;
 pub mod swarm;
 
 pub use budget::{Budget, BudgetClock, PlanFailure, PlanReport, SearchStats};
+pub use planner::{PlannerChoice, SolveSummary, run_planner};
 
 use phalanx_core::Instance;
 
