@@ -244,3 +244,41 @@ fn pareto_front_is_monotone() {
     assert_eq!(front.points[0].makespan, makespan_first.makespan);
     assert!(formation_first.sum_loss <= front.points.last().unwrap().sum_loss + 1e-9);
 }
+
+#[test]
+fn makespan_is_at_most_cbs_makespan_on_random_instances() {
+    // Joint-state A* with w = 0 minimises the makespan, CBS the sum of costs: wherever both
+    // finish, JSA's makespan is at most CBS's and equals the brute-force optimum.
+    let mut rng = Rng(23);
+    for round in 0..40 {
+        let k = 2 + round % 3;
+        let Some(inst) = random_instance(&mut rng, 5, 4, 0.15, k) else { continue };
+        let budget = Budget::seconds(5.0);
+        let jsa =
+            solve(&inst, &JointAStarConfig::with_objective(Objective::Weighted(0.0)), &budget);
+        let cbs = crate::cbs::solve(&inst, &crate::cbs::CbsConfig::default(), &budget);
+        if let Ok(plan) = &jsa.result {
+            validate(&inst, plan).unwrap();
+            assert_eq!(Some(plan.horizon()), brute_force_makespan(&inst), "round {round}");
+        }
+        if let (Ok(jsa_plan), Ok(cbs_plan)) = (&jsa.result, &cbs.result) {
+            validate(&inst, cbs_plan).unwrap();
+            let cbs_makespan = PlanMetrics::of(&inst, cbs_plan).makespan;
+            assert!(jsa_plan.horizon() <= cbs_makespan, "round {round}");
+        }
+    }
+}
+
+#[test]
+fn generated_small_rows_are_solved() {
+    // Two seeds of each 20×20 Table II row, formation-first as in the figures.
+    for (density, n_agents) in [(0.15, 3), (0.05, 3), (0.05, 5)] {
+        for seed in 1..=2 {
+            let config = phalanx_gen::GenConfig { size: 20, density, n_agents, seed, fov: 9 };
+            let inst = phalanx_gen::generate(&config).unwrap();
+            let search = JointAStarConfig::with_objective(Objective::FormationFirst);
+            let plan = solve(&inst, &search, &Budget::seconds(60.0)).result.unwrap();
+            validate(&inst, &plan).unwrap();
+        }
+    }
+}
