@@ -67,7 +67,7 @@ pub struct SwarmConfig {
     /// default 0.
     pub clearance: u32,
     /// Extra cost `λ` of a leader step onto a non-OPEN cell; `f64::INFINITY` minimises the
-    /// number of such cells first. Default 1.
+    /// number of such cells first. Default 10 (measured: see `docs/planners.md`).
     pub lambda: f64,
     /// Critical segments separated by fewer OPEN cells than this are merged; default 2.
     pub merge_gap: usize,
@@ -86,7 +86,7 @@ impl Default for SwarmConfig {
         SwarmConfig {
             leader_rule: LeaderRule::Centroid,
             clearance: 0,
-            lambda: 1.0,
+            lambda: 10.0,
             merge_gap: 2,
             local_margin: 2,
             sub_solver: SubSolver::Cbs,

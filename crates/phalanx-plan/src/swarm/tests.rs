@@ -101,3 +101,22 @@ fn every_plan_is_valid_on_walled_maps() {
         }
     }
 }
+
+#[test]
+fn generated_instances_give_valid_plans() {
+    // Every instance is solved (the planner is complete) and every plan passes the validator,
+    // with the default (CBS) and the formation-aware sub-solver.
+    for (size, density, n_agents) in [(20, 0.15, 3), (20, 0.05, 5), (64, 0.15, 4)] {
+        for seed in 1..=3 {
+            let gen_config = phalanx_gen::GenConfig { size, density, n_agents, seed, fov: 9 };
+            let inst = phalanx_gen::generate(&gen_config).unwrap();
+            for config in [SwarmConfig::default(), jsa_config()] {
+                let report = solve(&inst, &config, &Budget::seconds(30.0));
+                let plan = report.result.unwrap_or_else(|failure| {
+                    panic!("{size} {density} {n_agents} seed {seed}: {failure}")
+                });
+                validate(&inst, &plan).unwrap();
+            }
+        }
+    }
+}
