@@ -169,3 +169,39 @@ impl SolveSummary {
         lines.join("\n")
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use phalanx_core::{Cell, Grid, Instance};
+
+    use super::*;
+
+    #[test]
+    fn every_planner_is_summarised() {
+        let c = Cell::new;
+        let inst =
+            Instance::new(Grid::new(6, 6), vec![c(0, 0), c(1, 0)], vec![c(4, 5), c(5, 5)]).unwrap();
+        let choices = [
+            PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()),
+            PlannerChoice::Cbs(cbs::CbsConfig::default()),
+            PlannerChoice::Ecbs(ecbs::EcbsConfig::default()),
+            PlannerChoice::JointAStar(JointAStarConfig::default()),
+            PlannerChoice::Swarm(SwarmConfig::default()),
+        ];
+        for choice in &choices {
+            let report = run_planner(&inst, choice, &Budget::seconds(10.0));
+            let summary = SolveSummary::new(&inst, choice, &report);
+            assert_eq!(summary.outcome, Outcome::Solved, "{}", choice.name());
+            let metrics = summary.metrics.as_ref().unwrap();
+            assert!(metrics.success);
+            assert_eq!(metrics.makespan, 9, "{}", choice.name());
+            assert!(summary.to_text().contains("outcome: solved"));
+        }
+        let swap =
+            Instance::new(Grid::new(2, 1), vec![c(0, 0), c(1, 0)], vec![c(1, 0), c(0, 0)]).unwrap();
+        let choice = PlannerChoice::JointAStar(JointAStarConfig::default());
+        let report = run_planner(&swap, &choice, &Budget::seconds(10.0));
+        let summary = SolveSummary::new(&swap, &choice, &report);
+        assert_eq!((summary.outcome, summary.metrics), (Outcome::Unsolvable, None));
+    }
+}
