@@ -62,6 +62,9 @@ pub enum Objective {
     MakespanFirst,
     /// Lexicographic `(Σ loss, T)`: the formation-first end point of the front.
     FormationFirst,
+    /// Lexicographic `(Σ loss, T)` among plans with makespan at most the given bound: the
+    /// ε-constraint step of the exact front. The search state then includes the time step.
+    FormationFirstWithin(u32),
 }
 
 /// When to use operator decomposition.
@@ -116,7 +119,9 @@ impl JointAStarConfig {
 pub fn solve(instance: &Instance, config: &JointAStarConfig, budget: &Budget) -> PlanReport {
     let started = Instant::now();
     let bits = bits_per_cell(instance.grid());
-    let (result, mut stats) = if bits * instance.n_agents() as u32 <= 128 {
+    let time_bits =
+        if matches!(config.objective, Objective::FormationFirstWithin(_)) { 32 } else { 0 };
+    let (result, mut stats) = if bits * instance.n_agents() as u32 + time_bits <= 128 {
         Search::<u128>::new(instance, config, budget, started, bits).run()
     } else {
         Search::<Box<[u32]>>::new(instance, config, budget, started, bits).run()
@@ -187,24 +192,75 @@ pub fn pareto_front(instance: &Instance, config: &ParetoConfig, budget: &Budget)
     let mut runs = Vec::with_capacity(objectives.len());
     let mut stats = SearchStats::default();
     for objective in objectives {
-        let remaining = budget.time_limit.map(|t| t.saturating_sub(started.elapsed()));
-        let run_budget = Budget { time_limit: remaining, ..*budget };
-        let search = JointAStarConfig { objective, ..config.search.clone() };
-        let report = solve(instance, &search, &run_budget);
-        stats.high_level_expanded += report.stats.high_level_expanded;
-        stats.low_level_expanded += report.stats.low_level_expanded;
-        let point = report.result.map(|plan| {
-            let metrics = PlanMetrics::of(instance, &plan);
-            let sum_loss = metrics.formation_loss_per_step.iter().skip(1).sum();
-            ParetoPoint {
-                objective,
-                makespan: metrics.makespan,
-                formation_loss: metrics.formation_loss,
-                sum_loss,
-            }
-        });
+        let point = front_point(instance, objective, &config.search, budget, started, &mut stats);
         runs.push((objective, point));
     }
+    stats.runtime_s = started.elapsed().as_secs_f64();
+    ParetoFront { points: non_dominated(&runs), runs, stats }
+}
+
+/// The exact (makespan, ΣL_f) front by the ε-constraint method (baselines.md §4 (b)): the
+/// makespan-first end point `T₀`, the formation-first end point, and for every bound
+/// `T = T₀ + 1, T₀ + 2, …` the least loss of a plan with makespan at most `T`, until that
+/// loss reaches the formation-first optimum or the time limit runs out. Every
+/// [`ParetoFront::runs`] entry is in that order except that the formation-first run comes
+/// second. Meant for small instances: each bound is a search over (joint state, time).
+pub fn exact_front(instance: &Instance, config: &JointAStarConfig, budget: &Budget) -> ParetoFront {
+    let started = Instant::now();
+    let mut stats = SearchStats::default();
+    let mut runs = Vec::new();
+    for objective in [Objective::MakespanFirst, Objective::FormationFirst] {
+        let point = front_point(instance, objective, config, budget, started, &mut stats);
+        runs.push((objective, point));
+    }
+    if let (Ok(first), Ok(last)) = (&runs[0].1, &runs[1].1) {
+        let (first_makespan, last_makespan) = (first.makespan as u32, last.makespan as u32);
+        let least_loss = last.sum_loss;
+        for horizon in first_makespan + 1..last_makespan {
+            let objective = Objective::FormationFirstWithin(horizon);
+            let point = front_point(instance, objective, config, budget, started, &mut stats);
+            let done = match &point {
+                Ok(point) => point.sum_loss <= least_loss + 1e-9,
+                Err(_) => true,
+            };
+            runs.push((objective, point));
+            if done {
+                break;
+            }
+        }
+    }
+    stats.runtime_s = started.elapsed().as_secs_f64();
+    ParetoFront { points: non_dominated(&runs), runs, stats }
+}
+
+/// Solves one objective with what remains of the budget and scores the plan.
+fn front_point(
+    instance: &Instance,
+    objective: Objective,
+    search: &JointAStarConfig,
+    budget: &Budget,
+    started: Instant,
+    stats: &mut SearchStats,
+) -> Result<ParetoPoint, PlanFailure> {
+    let remaining = budget.time_limit.map(|t| t.saturating_sub(started.elapsed()));
+    let run_budget = Budget { time_limit: remaining, ..*budget };
+    let report = solve(instance, &JointAStarConfig { objective, ..search.clone() }, &run_budget);
+    stats.high_level_expanded += report.stats.high_level_expanded;
+    stats.low_level_expanded += report.stats.low_level_expanded;
+    report.result.map(|plan| {
+        let metrics = PlanMetrics::of(instance, &plan);
+        let sum_loss = metrics.formation_loss_per_step.iter().skip(1).sum();
+        ParetoPoint {
+            objective,
+            makespan: metrics.makespan,
+            formation_loss: metrics.formation_loss,
+            sum_loss,
+        }
+    })
+}
+
+/// The non-dominated points of the successful runs, by increasing makespan, duplicates removed.
+fn non_dominated(runs: &[(Objective, Result<ParetoPoint, PlanFailure>)]) -> Vec<ParetoPoint> {
     let mut points: Vec<ParetoPoint> =
         runs.iter().filter_map(|(_, it)| it.as_ref().ok().cloned()).collect();
     points.sort_by(|a, b| a.makespan.cmp(&b.makespan).then(a.sum_loss.total_cmp(&b.sum_loss)));
@@ -215,8 +271,7 @@ pub fn pareto_front(instance: &Instance, config: &ParetoConfig, budget: &Budget)
             front.push(point);
         }
     }
-    stats.runtime_s = started.elapsed().as_secs_f64();
-    ParetoFront { points: front, runs, stats }
+    front
 }
 
 /// Bits needed for a dense cell id of `grid`.
@@ -242,20 +297,25 @@ fn fixed(value: f64) -> i64 {
 }
 
 /// Packed joint states, the keys of the best-`g` table.
+/// With `time`, the key also holds the time step (for [`Objective::FormationFirstWithin`]).
 trait StateKey: Hash + Eq {
-    fn pack(grid: &Grid, cells: &[Cell], bits: u32) -> Self;
+    fn pack(grid: &Grid, cells: &[Cell], bits: u32, time: Option<u32>) -> Self;
 }
 
 impl StateKey for u128 {
     #[inline]
-    fn pack(grid: &Grid, cells: &[Cell], bits: u32) -> u128 {
-        cells.iter().fold(0u128, |acc, &c| acc << bits | u128::from(grid.id(c).0))
+    fn pack(grid: &Grid, cells: &[Cell], bits: u32, time: Option<u32>) -> u128 {
+        let key = cells.iter().fold(0u128, |acc, &c| acc << bits | u128::from(grid.id(c).0));
+        match time {
+            Some(t) => key << 32 | u128::from(t),
+            None => key,
+        }
     }
 }
 
 impl StateKey for Box<[u32]> {
-    fn pack(grid: &Grid, cells: &[Cell], _bits: u32) -> Box<[u32]> {
-        cells.iter().map(|&c| grid.id(c).0).collect()
+    fn pack(grid: &Grid, cells: &[Cell], _bits: u32, time: Option<u32>) -> Box<[u32]> {
+        cells.iter().map(|&c| grid.id(c).0).chain(time).collect()
     }
 }
 
@@ -269,6 +329,8 @@ struct Node {
     g: Cost,
     /// 0 for a full joint state, `j` for an intermediate node that moved agents `< j`.
     next_agent: u32,
+    /// The time step of the full state (of the base, for an intermediate node).
+    t: u32,
 }
 
 /// An entry of the open list: smaller `f` first, then larger `g`, then the newer node.
@@ -308,6 +370,8 @@ struct Search<'a, K> {
     bits: u32,
     n_agents: usize,
     decompose: bool,
+    /// The makespan bound of [`Objective::FormationFirstWithin`].
+    horizon: Option<u32>,
     dist: Vec<DistanceMap>,
     nodes: Vec<Node>,
     cells: Vec<Cell>,
@@ -341,6 +405,10 @@ impl<'a, K: StateKey> Search<'a, K> {
             bits,
             n_agents,
             decompose,
+            horizon: match config.objective {
+                Objective::FormationFirstWithin(horizon) => Some(horizon),
+                _ => None,
+            },
             dist: Vec::new(),
             nodes: Vec::new(),
             cells: Vec::new(),
@@ -354,6 +422,11 @@ impl<'a, K: StateKey> Search<'a, K> {
     fn run(mut self) -> (Result<Plan, PlanFailure>, SearchStats) {
         let res = self.search();
         (res, self.stats)
+    }
+
+    /// The time part of a key: only with a makespan bound.
+    fn time_key(&self, t: u32) -> Option<u32> {
+        self.horizon.map(|_| t)
     }
 
     fn node_cells(&self, node: u32) -> &[Cell] {
@@ -370,7 +443,7 @@ impl<'a, K: StateKey> Search<'a, K> {
         let steps = i64::from(steps) * COST_SCALE as i64;
         match self.config.objective {
             Objective::Weighted(_) | Objective::MakespanFirst => Cost(steps, 0),
-            Objective::FormationFirst => Cost(0, steps),
+            Objective::FormationFirst | Objective::FormationFirstWithin(_) => Cost(0, steps),
         }
     }
 
@@ -385,7 +458,9 @@ impl<'a, K: StateKey> Search<'a, K> {
             Objective::Weighted(0.0) => Cost(one, 0),
             Objective::Weighted(w) => Cost(one.saturating_add(fixed(w * loss(cells))), 0),
             Objective::MakespanFirst => Cost(one, fixed(loss(cells))),
-            Objective::FormationFirst => Cost(fixed(loss(cells)), one),
+            Objective::FormationFirst | Objective::FormationFirstWithin(_) => {
+                Cost(fixed(loss(cells)), one)
+            }
         }
     }
 
@@ -402,15 +477,27 @@ impl<'a, K: StateKey> Search<'a, K> {
     /// Stores a node and puts it on the open list.
     fn push_node(&mut self, parent: u32, base: u32, g: Cost, next_agent: u32, h: Cost) -> u32 {
         let idx = self.nodes.len() as u32;
-        self.nodes.push(Node { parent, base, g, next_agent });
+        let t = match self.nodes.get(base as usize) {
+            Some(base_node) if next_agent != 0 => base_node.t,
+            _ => self.nodes.get(parent as usize).map_or(0, |p| p.t + 1),
+        };
+        self.nodes.push(Node { parent, base, g, next_agent, t });
         self.open.push(OpenEntry { f: g.add(h), g, node: idx });
         idx
     }
 
     /// Offers the full joint state in `self.scratch`, reached from full node `parent`.
     fn offer_full(&mut self, parent: u32) {
+        let t = self.nodes[parent as usize].t + 1;
+        let h_steps = self.h_full(&self.scratch);
+        if self
+            .horizon
+            .is_some_and(|horizon| u64::from(t) + u64::from(h_steps) > u64::from(horizon))
+        {
+            return;
+        }
         let g = self.nodes[parent as usize].g.add(self.step_cost(&self.scratch));
-        let key = K::pack(self.grid, &self.scratch, self.bits);
+        let key = K::pack(self.grid, &self.scratch, self.bits, self.time_key(t));
         let idx = self.nodes.len() as u32;
         match self.seen.get_mut(&key) {
             Some(seen) if seen.closed || seen.g <= g => return,
@@ -422,7 +509,7 @@ impl<'a, K: StateKey> Search<'a, K> {
                 self.seen.insert(key, Seen { g, node: idx, closed: false });
             }
         }
-        let h = self.h_cost(self.h_full(&self.scratch));
+        let h = self.h_cost(h_steps);
         let cells = std::mem::take(&mut self.scratch);
         self.cells.extend_from_slice(&cells);
         self.scratch = cells;
@@ -438,7 +525,10 @@ impl<'a, K: StateKey> Search<'a, K> {
         }
         // The root.
         self.cells.extend_from_slice(starts);
-        let key = K::pack(self.grid, starts, self.bits);
+        if self.horizon.is_some_and(|horizon| self.h_full(starts) > horizon) {
+            return Err(PlanFailure::Unsolvable);
+        }
+        let key = K::pack(self.grid, starts, self.bits, self.time_key(0));
         self.seen.insert(key, Seen { g: Cost::default(), node: 0, closed: false });
         let h = self.h_cost(self.h_full(starts));
         self.push_node(u32::MAX, 0, Cost::default(), 0, h);
@@ -454,7 +544,8 @@ impl<'a, K: StateKey> Search<'a, K> {
             }
             let next_agent = self.nodes[node as usize].next_agent;
             if next_agent == 0 {
-                let key = K::pack(self.grid, self.node_cells(node), self.bits);
+                let time = self.time_key(self.nodes[node as usize].t);
+                let key = K::pack(self.grid, self.node_cells(node), self.bits, time);
                 let Some(seen) = self.seen.get_mut(&key) else { continue };
                 if seen.closed || seen.node != node || seen.g != g {
                     continue; // a stale entry
@@ -544,7 +635,13 @@ impl<'a, K: StateKey> Search<'a, K> {
                 if moved == DistanceMap::UNREACHABLE {
                     continue;
                 }
-                let h = self.h_cost((moved + 1).max(unmoved));
+                let h_steps = (moved + 1).max(unmoved);
+                let t = self.nodes[base as usize].t;
+                if self.horizon.is_some_and(|hz| u64::from(t) + u64::from(h_steps) > u64::from(hz))
+                {
+                    continue;
+                }
+                let h = self.h_cost(h_steps);
                 self.cells.extend_from_slice(&current[..agent]);
                 self.cells.push(to);
                 self.cells.extend_from_slice(&old[agent + 1..]);

@@ -282,3 +282,83 @@ fn generated_small_rows_are_solved() {
         }
     }
 }
+
+/// The least `Σ L_f` of a plan with makespan at most `horizon`, by dynamic programming over
+/// time layers (in floating point).
+fn brute_force_loss_within(inst: &Instance, horizon: usize) -> Option<f64> {
+    let mut layer: FxHashMap<Vec<Cell>, f64> = FxHashMap::default();
+    layer.insert(inst.starts().to_vec(), 0.0);
+    let mut best = layer.get(inst.goals()).copied();
+    for _ in 0..horizon {
+        let mut next_layer: FxHashMap<Vec<Cell>, f64> = FxHashMap::default();
+        for (state, &cost) in &layer {
+            if state == inst.goals() {
+                continue; // a plan ends when the goals are reached
+            }
+            for next in successors(inst.grid(), state) {
+                let c = cost + formation_loss(&next, inst.goals());
+                if next_layer.get(&next).is_none_or(|&old| c < old) {
+                    next_layer.insert(next, c);
+                }
+            }
+        }
+        layer = next_layer;
+        if let Some(&c) = layer.get(inst.goals()) {
+            best = Some(best.map_or(c, |b: f64| b.min(c)));
+        }
+    }
+    best
+}
+
+#[test]
+fn bounded_loss_matches_brute_force_on_random_instances() {
+    let mut rng = Rng(31);
+    let mut checked = 0;
+    for round in 0..30 {
+        let k = 2 + round % 2;
+        let Some(inst) = random_instance(&mut rng, 4, 3, 0.1, k) else { continue };
+        let Some(t0) = brute_force_makespan(&inst) else { continue };
+        for horizon in [t0, t0 + 1, t0 + 3] {
+            let expected = brute_force_loss_within(&inst, horizon).unwrap();
+            for decomposition in [Decomposition::Never, Decomposition::Always] {
+                let objective = Objective::FormationFirstWithin(horizon as u32);
+                let plan = run(&inst, objective, decomposition).result.unwrap();
+                validate(&inst, &plan).unwrap();
+                let m = PlanMetrics::of(&inst, &plan);
+                assert!(m.makespan <= horizon, "round {round}");
+                let got: f64 = m.formation_loss_per_step.iter().skip(1).sum();
+                assert!(
+                    (got - expected).abs() < 1e-6,
+                    "round {round} T {horizon}: {got} {expected}"
+                );
+            }
+        }
+        checked += 1;
+    }
+    assert!(checked > 15, "only {checked} instances");
+    let inst = Instance::new(Grid::new(4, 1), vec![c(0, 0)], vec![c(3, 0)]).unwrap();
+    let res = run(&inst, Objective::FormationFirstWithin(2), Decomposition::Auto).result;
+    assert_eq!(res, Err(PlanFailure::Unsolvable));
+}
+
+#[test]
+fn exact_front_contains_the_weighted_front() {
+    let grid = Grid::from_fn(7, 5, |p| p.x == 3 && p.y != 2);
+    let starts = vec![c(0, 1), c(0, 2), c(0, 3)];
+    let goals = vec![c(6, 1), c(6, 2), c(6, 3)];
+    let inst = Instance::new(grid, starts, goals).unwrap();
+    let exact = exact_front(&inst, &JointAStarConfig::default(), &Budget::seconds(60.0));
+    let weighted = pareto_front(&inst, &ParetoConfig::default(), &Budget::seconds(60.0));
+    assert!(exact.runs.iter().all(|(_, it)| it.is_ok()));
+    for pair in exact.points.windows(2) {
+        assert!(pair[0].makespan < pair[1].makespan);
+        assert!(pair[0].sum_loss > pair[1].sum_loss);
+    }
+    // No weighted point beats the exact front at its makespan.
+    for point in &weighted.points {
+        let best = exact.points.iter().filter(|e| e.makespan <= point.makespan);
+        let least = best.map(|e| e.sum_loss).fold(f64::INFINITY, f64::min);
+        assert!(least <= point.sum_loss + 1e-6, "{point:?} vs {:?}", exact.points);
+    }
+    assert!(exact.points.len() >= weighted.points.len());
+}
