@@ -11,7 +11,17 @@ use crate::fixture::instance;
 /// Runs CBS, validates the plan and returns its sum of costs.
 #[track_caller]
 fn cbs_soc(inst: &Instance, config: &cbs::CbsConfig) -> Result<u32, PlanFailure> {
-    let report = cbs::solve(inst, config, &Budget::seconds(10.0));
+    cbs_soc_within(inst, config, 10.0)
+}
+
+/// [`cbs_soc`] with a time limit.
+#[track_caller]
+fn cbs_soc_within(
+    inst: &Instance,
+    config: &cbs::CbsConfig,
+    seconds: f64,
+) -> Result<u32, PlanFailure> {
+    let report = cbs::solve(inst, config, &Budget::seconds(seconds));
     let plan = report.result?;
     validate(inst, &plan).expect("valid plan");
     Ok(PlanMetrics::of(inst, &plan).sum_of_costs as u32)
@@ -122,7 +132,9 @@ fn cbs_matches_brute_force_on_random_tiny_instances() {
         checked += 1;
         let optimum = optimal_soc(&inst);
         for (i, config) in all_configs().iter().enumerate() {
-            let res = cbs_soc(&inst, config);
+            // Unsolvable instances may take long to prove so: a short budget suffices.
+            let seconds = if optimum.is_some() { 10.0 } else { 0.3 };
+            let res = cbs_soc_within(&inst, config, seconds);
             match optimum {
                 Some(optimum) => assert_eq!(res, Ok(optimum), "config {i} on {inst:?}"),
                 None => {
