@@ -293,8 +293,11 @@ pub(crate) struct LowLevel<'g> {
     grid: &'g Grid,
     nodes: Vec<Node>,
     index: FxHashMap<(u32, u32), u32>,
-    open: BinaryHeap<Reverse<(u32, u32, Reverse<u32>, u32)>>,
+    open: BinaryHeap<Reverse<OpenKey>>,
 }
+
+/// `(f, conflicts, Reverse(g), node)`: the order of expansion.
+type OpenKey = (u32, u32, Reverse<u32>, u32);
 
 /// How often (in expansions) the low level reads the clock.
 const CLOCK_EVERY: u64 = 1024;
@@ -384,7 +387,7 @@ impl<'g> LowLevel<'g> {
             }
             local_expanded += 1;
             *expanded += 1;
-            if local_expanded % CLOCK_EVERY == 0 {
+            if local_expanded.is_multiple_of(CLOCK_EVERY) {
                 if clock.timed_out() {
                     return LowResult::Timeout;
                 }

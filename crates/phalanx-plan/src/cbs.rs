@@ -225,7 +225,7 @@ impl<'a> Search<'a> {
     fn run(&mut self) -> Result<Vec<Vec<u32>>, PlanFailure> {
         let n_agents = self.n_agents();
         // Root: plan agents one by one, each avoiding conflicts with the earlier ones.
-        let mut paths: Vec<Rc<Vec<u32>>> = vec![Rc::new(Vec::new()); n_agents];
+        let mut paths: Vec<Rc<Vec<u32>>> = (0..n_agents).map(|_| Rc::new(Vec::new())).collect();
         let empty = Constraints::default();
         for agent in 0..n_agents as u32 {
             match self.plan_agent(agent, &empty, &paths)? {

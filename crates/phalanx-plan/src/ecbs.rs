@@ -107,7 +107,7 @@ fn run(
             &mut stats.low_level_expanded,
         )
     };
-    let mut paths: Vec<Rc<Vec<u32>>> = vec![Rc::new(Vec::new()); n_agents];
+    let mut paths: Vec<Rc<Vec<u32>>> = (0..n_agents).map(|_| Rc::new(Vec::new())).collect();
     let mut bounds = vec![0; n_agents];
     let empty = Constraints::default();
     for agent in 0..n_agents {
@@ -325,7 +325,7 @@ impl<'g> FocalLow<'g> {
             }
             local += 1;
             *expanded += 1;
-            if local % 1024 == 0 && clock.timed_out() {
+            if local.is_multiple_of(1024) && clock.timed_out() {
                 return Err(PlanFailure::Timeout);
             }
             let t = node.g + 1;

@@ -1,12 +1,12 @@
 //! Classical multi-agent path-finding planners of phalanx, one module per algorithm, each with
 //! a free-function entry point `solve(&Instance, &Config, &Budget) -> PlanReport`:
 //!
-//! - [`astar`]: space-time A* (the low level of CBS/ECBS) and prioritised planning;
-//! - [`cbs`]: Conflict-Based Search, optimal for the sum of costs, with the ICBS improvements,
+//! - [`astar`], space-time A* (the low level of CBS/ECBS) and prioritised planning;
+//! - [`cbs`], Conflict-Based Search, optimal for the sum of costs, with the ICBS improvements,
 //!   rectangle (symmetry) reasoning and the WDG heuristic;
-//! - [`ecbs`]: bounded-suboptimal Enhanced CBS (focal search);
-//! - [`joint_astar`]: joint-state A*;
-//! - [`swarm`]: SWARM-MAPF.
+//! - [`ecbs`], bounded-suboptimal Enhanced CBS (focal search);
+//! - [`joint_astar`], joint-state A*;
+//! - [`swarm`], SWARM-MAPF.
 //!
 //! Planners never panic on an unsolvable instance, a timeout or a node limit: those are
 //! [`PlanFailure`] outcomes, and [`SearchStats`] always come back.
