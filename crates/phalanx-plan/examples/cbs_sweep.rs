@@ -97,6 +97,7 @@ fn main() {
                                 prioritize_conflicts: false,
                                 bypass: false,
                                 rectangle_reasoning: false,
+                                target_reasoning: false,
                                 cg_heuristic: false,
                                 conflict_avoidance: false,
                             },

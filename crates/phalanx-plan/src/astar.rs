@@ -142,6 +142,11 @@ pub(crate) struct Constraints {
     pub(crate) blocked_from: FxHashMap<u32, u32>,
     /// The latest time of any constraint (the problem is static afterwards).
     pub(crate) latest: u32,
+    /// The agent may finish (arrive at its goal for good) only at this time or later
+    /// (target reasoning: "the path is longer than `t`").
+    pub(crate) min_finish: u32,
+    /// The agent must finish by this time.
+    pub(crate) finish_by: Option<u32>,
 }
 
 impl Constraints {
@@ -153,6 +158,25 @@ impl Constraints {
     pub(crate) fn add_edge(&mut self, from: u32, to: u32, t: u32) {
         self.edge.insert((from, to, t));
         self.latest = self.latest.max(t);
+    }
+
+    /// Forbids `cell` from `t` on.
+    pub(crate) fn block_from(&mut self, cell: u32, t: u32) {
+        let since = self.blocked_from.entry(cell).or_insert(t);
+        *since = (*since).min(t);
+        self.latest = self.latest.max(t);
+    }
+
+    /// Requires finishing at `t` or later.
+    pub(crate) fn finish_not_before(&mut self, t: u32) {
+        self.min_finish = self.min_finish.max(t);
+        self.latest = self.latest.max(t);
+    }
+
+    /// The earliest time the agent may finish at `goal`: after every vertex constraint on
+    /// the goal (goal hold) and not before `min_finish`.
+    pub(crate) fn earliest_finish(&self, goal: u32) -> u32 {
+        self.goal_latest(goal).map_or(0, |t| t + 1).max(self.min_finish)
     }
 
     /// Reserves `path` of another agent: its cells, its moves (no swaps) and its goal for
@@ -352,10 +376,10 @@ impl<'g> LowLevel<'g> {
             return LowResult::Infeasible;
         }
         let cons = query.constraints;
-        let goal_latest = cons.goal_latest(query.goal);
         // The earliest finishing time the goal-hold rule allows.
-        let earliest_finish = goal_latest.map_or(0, |t| t + 1);
-        if earliest_finish.max(h0) > query.max_time {
+        let earliest_finish = cons.earliest_finish(query.goal);
+        let max_time = query.max_time.min(cons.finish_by.unwrap_or(u32::MAX));
+        if earliest_finish.max(h0) > max_time {
             return LowResult::Infeasible;
         }
         let cat_horizon = query.cat.map_or(0, |cat| cat.horizon);
@@ -382,7 +406,7 @@ impl<'g> LowLevel<'g> {
                 continue;
             }
             self.nodes[idx as usize].closed = true;
-            if node.cell == query.goal && goal_latest.is_none_or(|t| g > t) {
+            if node.cell == query.goal && g >= earliest_finish {
                 return LowResult::Found(self.extract(idx));
             }
             local_expanded += 1;
@@ -396,7 +420,7 @@ impl<'g> LowLevel<'g> {
                 }
             }
             let t = g + 1;
-            if t > query.max_time {
+            if t > max_time {
                 continue;
             }
             let layer = t.min(collapse);
@@ -409,7 +433,7 @@ impl<'g> LowLevel<'g> {
                     continue;
                 }
                 let d = query.dist[next as usize];
-                if d == DistanceMap::UNREACHABLE || t + d > query.max_time {
+                if d == DistanceMap::UNREACHABLE || t + d > max_time {
                     continue;
                 }
                 let c = conflicts + query.cat.map_or(0, |cat| cat.count(node.cell, next, t));

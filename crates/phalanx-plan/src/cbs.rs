@@ -1,7 +1,7 @@
 //! Conflict-Based Search (Sharon, Stern, Felner, Sturtevant, AIJ 219, 2015), optimal for the
 //! sum of costs, with the ICBS improvements (Boyarski et al., IJCAI 2015): conflict
 //! prioritisation by cardinality via MDDs and bypassing; the admissible CG heuristic (Felner
-//! et al., ICAPS 2018); and rectangle reasoning with barrier constraints (Li, Harabor,
+//! et al., ICAPS 2018); target reasoning (Li et al., ICAPS 2020); and rectangle reasoning with barrier constraints (Li, Harabor,
 //! Stuckey, Ma, Koenig, AAAI 2019) for the rectangle symmetries that agents travelling side
 //! by side produce.
 //!
@@ -52,6 +52,10 @@ pub struct CbsConfig {
     pub bypass: bool,
     /// Rectangle (symmetry) reasoning with barrier constraints (Li et al. 2019). Default `true`.
     pub rectangle_reasoning: bool,
+    /// Target reasoning (Li, Gange, Harabor, Stuckey, Ma, Koenig, ICAPS 2020): a conflict at
+    /// an agent's goal after it arrived splits on "it arrives later" / "the other agent keeps
+    /// off that goal from then on". Default `true`.
+    pub target_reasoning: bool,
     /// Admissible high-level heuristic: the minimum vertex cover of the cardinal conflict
     /// graph (CG, Felner et al. 2018). Needs `prioritize_conflicts`. Default `true`.
     pub cg_heuristic: bool,
@@ -66,6 +70,7 @@ impl Default for CbsConfig {
             prioritize_conflicts: true,
             bypass: true,
             rectangle_reasoning: true,
+            target_reasoning: true,
             cg_heuristic: true,
             conflict_avoidance: true,
         }
@@ -88,8 +93,35 @@ pub fn solve(instance: &Instance, config: &CbsConfig, budget: &Budget) -> PlanRe
 /// A constraint added at a constraint-tree node.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum NewConstraint {
-    Vertex { cell: u32, t: u32 },
-    Edge { from: u32, to: u32, t: u32 },
+    Vertex {
+        cell: u32,
+        t: u32,
+    },
+    Edge {
+        from: u32,
+        to: u32,
+        t: u32,
+    },
+    /// The cell is forbidden from `t` on (target reasoning).
+    BlockedFrom {
+        cell: u32,
+        t: u32,
+    },
+    /// The agent finishes at `t` or later (target reasoning).
+    FinishNotBefore {
+        t: u32,
+    },
+}
+
+impl NewConstraint {
+    fn apply(self, constraints: &mut Constraints) {
+        match self {
+            NewConstraint::Vertex { cell, t } => constraints.add_vertex(cell, t),
+            NewConstraint::Edge { from, to, t } => constraints.add_edge(from, to, t),
+            NewConstraint::BlockedFrom { cell, t } => constraints.block_from(cell, t),
+            NewConstraint::FinishNotBefore { t } => constraints.finish_not_before(t),
+        }
+    }
 }
 
 /// Kinds of conflicts between two agents' paths.
@@ -179,10 +211,7 @@ impl<'a> Search<'a> {
             let n = &self.nodes[idx as usize];
             if n.agent == agent {
                 for &c in &n.constraints {
-                    match c {
-                        NewConstraint::Vertex { cell, t } => res.add_vertex(cell, t),
-                        NewConstraint::Edge { from, to, t } => res.add_edge(from, to, t),
-                    }
+                    c.apply(&mut res);
                 }
             }
             idx = n.parent;
@@ -319,6 +348,23 @@ impl<'a> Search<'a> {
     /// The two branches of `conflict`: (agent, constraints to add).
     fn branches(&self, idx: u32, conflict: &Conflict) -> Vec<(u32, Vec<NewConstraint>)> {
         let node = &self.nodes[idx as usize];
+        let t = conflict.t;
+        if self.config.target_reasoning
+            && let ConflictKind::Vertex { cell } = conflict.kind
+        {
+            for (parked, other) in [(conflict.a2, conflict.a1), (conflict.a1, conflict.a2)] {
+                if cell == self.goals[parked as usize]
+                    && t >= path_cost(&node.paths[parked as usize])
+                {
+                    // Either `parked` arrives for good after `t`, or it is on its goal from
+                    // `t` on and `other` must keep off it from then.
+                    return vec![
+                        (parked, vec![NewConstraint::FinishNotBefore { t: t + 1 }]),
+                        (other, vec![NewConstraint::BlockedFrom { cell, t }]),
+                    ];
+                }
+            }
+        }
         if self.config.rectangle_reasoning
             && let ConflictKind::Vertex { cell } = conflict.kind
             && let Some(barriers) = rectangle::barriers(
@@ -334,7 +380,6 @@ impl<'a> Search<'a> {
             };
             return vec![(conflict.a1, to_cons(b1)), (conflict.a2, to_cons(b2))];
         }
-        let t = conflict.t;
         match conflict.kind {
             ConflictKind::Vertex { cell } => vec![
                 (conflict.a1, vec![NewConstraint::Vertex { cell, t }]),
@@ -357,10 +402,7 @@ impl<'a> Search<'a> {
         let p = &self.nodes[parent as usize];
         let mut constraints = self.constraints_of(parent, agent);
         for &c in &new_constraints {
-            match c {
-                NewConstraint::Vertex { cell, t } => constraints.add_vertex(cell, t),
-                NewConstraint::Edge { from, to, t } => constraints.add_edge(from, to, t),
-            }
+            c.apply(&mut constraints);
         }
         let paths = p.paths.clone();
         let parent_f = p.cost + p.h;

@@ -285,8 +285,7 @@ impl<'g> FocalLow<'g> {
         if h0 == DistanceMap::UNREACHABLE {
             return Ok(None);
         }
-        let goal_latest = q.constraints.goal_latest(q.goal);
-        let earliest_finish = goal_latest.map_or(0, |t| t + 1);
+        let earliest_finish = q.constraints.earliest_finish(q.goal);
         let collapse = q.constraints.latest.max(q.cat.horizon) + 1;
         let heuristic =
             |cell: u32, t: u32| q.dist[cell as usize].max(earliest_finish.saturating_sub(t));
@@ -312,7 +311,7 @@ impl<'g> FocalLow<'g> {
             self.focal.remove(&(node.conflicts, node.f, std::cmp::Reverse(node.g), idx));
             self.open.remove(&(node.f, std::cmp::Reverse(node.g), idx));
             self.nodes[idx as usize].closed = true;
-            if node.cell == q.goal && goal_latest.is_none_or(|t| node.g > t) {
+            if node.cell == q.goal && node.g >= earliest_finish {
                 let lb = self.open.first().map_or(node.f, |&(f, _, _)| f.min(node.f)).min(f_min);
                 let mut path = Vec::with_capacity(node.g as usize + 1);
                 let mut i = idx;
