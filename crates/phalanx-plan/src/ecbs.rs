@@ -126,7 +126,7 @@ fn run(
     let mut by_cost: BTreeSet<(u32, u32, u32)> = BTreeSet::new(); // (cost, n_conflicts, idx)
     open.insert((lb, 0));
     by_cost.insert((cost, n_conflicts, 0));
-    while let Some(&(lb_min, _)) = open.first() {
+    while let Some(&(lb_min, first)) = open.first() {
         if let Some(failure) = clock.exhausted(stats.high_level_expanded) {
             return Err(failure);
         }
@@ -136,7 +136,9 @@ fn run(
             .range(..(bound + 1, 0, 0))
             .min_by_key(|&&(cost, n_conflicts, idx)| (n_conflicts, cost, std::cmp::Reverse(idx)))
             .map(|&(_, _, idx)| idx)
-            .expect("the node with the least bound has cost <= w * bound");
+            // The node with the least bound always qualifies (each path costs at most `w`
+            // times its agent's bound); fall back to it regardless.
+            .unwrap_or(first);
         let node = &nodes[idx as usize];
         open.remove(&(node.lb, idx));
         by_cost.remove(&(node.cost, node.n_conflicts, idx));

@@ -5,3 +5,4 @@
 mod brute;
 mod cbs_tests;
 mod fixture;
+mod slow;
