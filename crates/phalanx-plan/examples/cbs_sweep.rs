@@ -7,7 +7,8 @@
 //! cargo run --release -p phalanx-plan --example cbs_sweep -- \
 //!     [--sizes 64,512] [--densities 0.05,0.15] [--agents 3,4,5] [--seeds 10] \
 //!     [--time-limit 60] [--random-obstacles]
-//!     [--planner cbs|ecbs|plain-cbs|cbs-no-cat|cbs-no-cat-no-rect]
+//!     [--planner cbs|ecbs|plain-cbs|cbs-no-cat|cbs-no-cat-no-pc|cbs-no-cat-no-rect
+//!     |cbs:pc,bp,rect,target,cg,cat (any subset)]
 //! ```
 
 #![allow(clippy::print_stdout, clippy::print_stderr, reason = "a command-line report")]
@@ -108,6 +109,16 @@ fn main() {
                             &cbs::CbsConfig { conflict_avoidance: false, ..Default::default() },
                             &budget,
                         ),
+                        "cbs-no-cat-no-pc" => cbs::solve(
+                            &inst,
+                            &cbs::CbsConfig {
+                                conflict_avoidance: false,
+                                prioritize_conflicts: false,
+                                cg_heuristic: false,
+                                ..Default::default()
+                            },
+                            &budget,
+                        ),
                         "cbs-no-cat-no-rect" => cbs::solve(
                             &inst,
                             &cbs::CbsConfig {
@@ -118,6 +129,19 @@ fn main() {
                             &budget,
                         ),
                         "ecbs" => ecbs::solve(&inst, &ecbs::EcbsConfig::default(), &budget),
+                        custom if custom.starts_with("cbs:") => {
+                            // `cbs:pc,bp,rect,target,cg,cat`: exactly the listed improvements.
+                            let on: Vec<&str> = custom[4..].split(',').collect();
+                            let config = cbs::CbsConfig {
+                                prioritize_conflicts: on.contains(&"pc"),
+                                bypass: on.contains(&"bp"),
+                                rectangle_reasoning: on.contains(&"rect"),
+                                target_reasoning: on.contains(&"target"),
+                                cg_heuristic: on.contains(&"cg"),
+                                conflict_avoidance: on.contains(&"cat"),
+                            };
+                            cbs::solve(&inst, &config, &budget)
+                        }
                         other => panic!("unknown planner {other}"),
                     };
                     let s = report.stats;

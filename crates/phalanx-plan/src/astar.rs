@@ -481,10 +481,34 @@ pub(crate) struct Mdd {
     pub(crate) layers: Vec<Vec<u32>>,
 }
 
+/// Reusable per-cell marks for MDD construction and queries (flat, indexed by cell id).
+#[derive(Debug, Clone)]
+pub(crate) struct MddScratch {
+    stamp: Vec<u32>,
+    mark: u32,
+}
+
+impl MddScratch {
+    pub(crate) fn new(n_cells: usize) -> MddScratch {
+        MddScratch { stamp: vec![0; n_cells], mark: 0 }
+    }
+
+    /// A mark no cell carries yet.
+    fn fresh(&mut self) -> u32 {
+        if self.mark == u32::MAX {
+            self.stamp.fill(0);
+            self.mark = 0;
+        }
+        self.mark += 1;
+        self.mark
+    }
+}
+
 impl Mdd {
     /// Builds the MDD of paths from `start` to `goal` arriving at exactly `cost` (and staying:
     /// `cost` must be the agent's optimal cost under `constraints`, so the goal-hold rule
     /// holds at `cost`). Returns `None` on a timeout.
+    #[expect(clippy::too_many_arguments, reason = "one call site; the inputs of one query")]
     pub(crate) fn build(
         grid: &Grid,
         start: u32,
@@ -493,14 +517,15 @@ impl Mdd {
         dist: &[u32],
         constraints: &Constraints,
         clock: &BudgetClock,
+        scratch: &mut MddScratch,
     ) -> Option<Mdd> {
         let mut layers: Vec<Vec<u32>> = Vec::with_capacity(cost as usize + 1);
-        let mut stamp: FxHashMap<u32, u32> = FxHashMap::default();
         layers.push(vec![start]);
         for t in 1..=cost {
             if t % 64 == 0 && clock.timed_out() {
                 return None;
             }
+            let mark = scratch.fresh();
             let mut next_layer = Vec::new();
             for &cell in &layers[t as usize - 1] {
                 let (succ, n) = LowLevel::successors(grid, cell);
@@ -509,13 +534,11 @@ impl Mdd {
                     if d == DistanceMap::UNREACHABLE || t + d > cost {
                         continue;
                     }
-                    if !constraints.allows(cell, next, t) {
+                    if scratch.stamp[next as usize] == mark || !constraints.allows(cell, next, t) {
                         continue;
                     }
-                    if stamp.get(&next) != Some(&t) {
-                        stamp.insert(next, t);
-                        next_layer.push(next);
-                    }
+                    scratch.stamp[next as usize] = mark;
+                    next_layer.push(next);
                 }
             }
             layers.push(next_layer);
@@ -523,16 +546,18 @@ impl Mdd {
         // Backward pass: keep the cells with a successor in the next (kept) layer.
         let last = layers.len() - 1;
         layers[last].retain(|&c| c == goal);
-        let mut kept: FxHashSet<u32> = FxHashSet::default();
         for t in (0..last).rev() {
-            kept.clear();
-            kept.extend(layers[t + 1].iter().copied());
+            let mark = scratch.fresh();
+            for &cell in &layers[t + 1] {
+                scratch.stamp[cell as usize] = mark;
+            }
             let step = t as u32 + 1;
+            let stamp = &scratch.stamp;
             layers[t].retain(|&cell| {
                 let (succ, n) = LowLevel::successors(grid, cell);
-                succ[..n]
-                    .iter()
-                    .any(|&next| kept.contains(&next) && constraints.allows(cell, next, step))
+                succ[..n].iter().any(|&next| {
+                    stamp[next as usize] == mark && constraints.allows(cell, next, step)
+                })
             });
         }
         for layer in &mut layers {
@@ -545,6 +570,45 @@ impl Mdd {
     pub(crate) fn is_singleton(&self, cell: u32, t: u32) -> bool {
         let layer = &self.layers[(t as usize).min(self.layers.len() - 1)];
         layer.len() == 1 && layer[0] == cell
+    }
+
+    /// Whether some path of the MDD avoids every `(cell, t)` in `forbidden` (then forbidding
+    /// them does not raise the agent's cost). Edge constraints inside the MDD are ignored,
+    /// which can only answer "avoids" too often.
+    pub(crate) fn avoids(
+        &self,
+        grid: &Grid,
+        forbidden: &FxHashSet<(u32, u32)>,
+        scratch: &mut MddScratch,
+    ) -> bool {
+        let cost = self.layers.len() as u32 - 1;
+        let goal = self.layers[cost as usize][0];
+        if forbidden.iter().any(|&(cell, t)| cell == goal && t >= cost) {
+            return false;
+        }
+        let mut reached: Vec<u32> =
+            self.layers[0].iter().copied().filter(|&c| !forbidden.contains(&(c, 0))).collect();
+        for t in 1..=cost {
+            if reached.is_empty() {
+                return false;
+            }
+            let mark = scratch.fresh();
+            for &cell in &reached {
+                scratch.stamp[cell as usize] = mark;
+            }
+            let stamp = &scratch.stamp;
+            reached = self.layers[t as usize]
+                .iter()
+                .copied()
+                .filter(|&cell| {
+                    !forbidden.contains(&(cell, t)) && {
+                        let (succ, n) = LowLevel::successors(grid, cell);
+                        succ[..n].iter().any(|&prev| stamp[prev as usize] == mark)
+                    }
+                })
+                .collect();
+        }
+        !reached.is_empty()
     }
 }
 

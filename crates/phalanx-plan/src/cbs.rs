@@ -34,10 +34,10 @@ use std::collections::BinaryHeap;
 use std::rc::Rc;
 
 use phalanx_core::{DistanceMap, Instance};
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use crate::astar::{
-    self, ConflictTable, Constraints, LowLevel, LowResult, Mdd, Query, at, path_cost,
+    self, ConflictTable, Constraints, LowLevel, LowResult, Mdd, MddScratch, Query, at, path_cost,
 };
 use crate::{Budget, BudgetClock, PlanFailure, PlanReport, SearchStats};
 
@@ -50,7 +50,9 @@ pub struct CbsConfig {
     /// Adopt a child's path without branching when it has the parent's cost and fewer
     /// conflicts (bypassing, ICBS). Default `true`.
     pub bypass: bool,
-    /// Rectangle (symmetry) reasoning with barrier constraints (Li et al. 2019). Default `true`.
+    /// Rectangle (symmetry) reasoning with barrier constraints (Li et al. 2019), used when a
+    /// barrier raises an agent's cost (checked on the MDDs, so it needs
+    /// `prioritize_conflicts`). Default `true`.
     pub rectangle_reasoning: bool,
     /// Target reasoning (Li, Gange, Harabor, Stuckey, Ma, Koenig, ICAPS 2020): a conflict at
     /// an agent's goal after it arrived splits on "it arrives later" / "the other agent keeps
@@ -124,6 +126,9 @@ impl NewConstraint {
     }
 }
 
+/// The branches of a split: per child, the agent and the constraints added to it.
+type Branches = Vec<(u32, Vec<NewConstraint>)>;
+
 /// Kinds of conflicts between two agents' paths.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 enum ConflictKind {
@@ -178,6 +183,7 @@ struct Search<'a> {
     open: BinaryHeap<Reverse<(u32, u32, Reverse<u32>)>>,
     max_time: u32,
     mdds: FxHashMap<(u32, u32), Rc<Mdd>>,
+    scratch: MddScratch,
 }
 
 impl<'a> Search<'a> {
@@ -196,6 +202,7 @@ impl<'a> Search<'a> {
             open: BinaryHeap::new(),
             max_time: astar::joint_horizon_bound(instance),
             mdds: FxHashMap::default(),
+            scratch: MddScratch::new(grid.n_cells()),
         }
     }
 
@@ -307,10 +314,13 @@ impl<'a> Search<'a> {
             let conflicts = all_conflicts(&self.nodes[idx as usize].paths);
             debug_assert!(!conflicts.is_empty());
             let (conflict, class) = self.choose_conflict(idx, &conflicts)?;
-            let branches = self.branches(idx, &conflict);
             let parent_cost = self.nodes[idx as usize].cost;
             let parent_conflicts = self.nodes[idx as usize].n_conflicts;
             let mut children = Vec::with_capacity(2);
+            let branches = match self.rectangle_branches(idx, &conflict)? {
+                Some(branches) => branches,
+                None => self.branches(idx, &conflict),
+            };
             for (agent, new_constraints) in branches {
                 if let Some(child) = self.make_child(idx, agent, new_constraints)? {
                     children.push(child);
@@ -345,8 +355,50 @@ impl<'a> Search<'a> {
         }
     }
 
+    /// The barrier branches of a rectangle conflict, or `None` when `conflict` is not one, or
+    /// when neither barrier raises its agent's cost (checked on the MDDs): then the barriers
+    /// would only move the conflicts around, and the conflict itself is split on.
+    fn rectangle_branches(
+        &mut self,
+        idx: u32,
+        conflict: &Conflict,
+    ) -> Result<Option<Branches>, PlanFailure> {
+        if !(self.config.rectangle_reasoning && self.config.prioritize_conflicts) {
+            return Ok(None);
+        }
+        let ConflictKind::Vertex { cell } = conflict.kind else { return Ok(None) };
+        let goal_conflict =
+            cell == self.goals[conflict.a1 as usize] || cell == self.goals[conflict.a2 as usize];
+        if goal_conflict && self.config.target_reasoning {
+            return Ok(None);
+        }
+        let node = &self.nodes[idx as usize];
+        let Some(barriers) = rectangle::barriers(
+            self.instance.grid(),
+            [&node.paths[conflict.a1 as usize], &node.paths[conflict.a2 as usize]],
+            cell,
+            conflict.t,
+        ) else {
+            return Ok(None);
+        };
+        let mut raises = false;
+        for (agent, barrier) in [conflict.a1, conflict.a2].into_iter().zip(&barriers) {
+            let mdd = self.mdd(idx, agent)?;
+            let forbidden: FxHashSet<(u32, u32)> = barrier.iter().copied().collect();
+            raises |= !mdd.avoids(self.instance.grid(), &forbidden, &mut self.scratch);
+        }
+        if !raises {
+            return Ok(None);
+        }
+        let [b1, b2] = barriers;
+        let to_cons = |b: Vec<(u32, u32)>| {
+            b.into_iter().map(|(cell, t)| NewConstraint::Vertex { cell, t }).collect()
+        };
+        Ok(Some(vec![(conflict.a1, to_cons(b1)), (conflict.a2, to_cons(b2))]))
+    }
+
     /// The two branches of `conflict`: (agent, constraints to add).
-    fn branches(&self, idx: u32, conflict: &Conflict) -> Vec<(u32, Vec<NewConstraint>)> {
+    fn branches(&self, idx: u32, conflict: &Conflict) -> Branches {
         let node = &self.nodes[idx as usize];
         let t = conflict.t;
         if self.config.target_reasoning
@@ -364,21 +416,6 @@ impl<'a> Search<'a> {
                     ];
                 }
             }
-        }
-        if self.config.rectangle_reasoning
-            && let ConflictKind::Vertex { cell } = conflict.kind
-            && let Some(barriers) = rectangle::barriers(
-                self.instance.grid(),
-                [&node.paths[conflict.a1 as usize], &node.paths[conflict.a2 as usize]],
-                cell,
-                conflict.t,
-            )
-        {
-            let [b1, b2] = barriers;
-            let to_cons = |b: Vec<(u32, u32)>| {
-                b.into_iter().map(|(cell, t)| NewConstraint::Vertex { cell, t }).collect()
-            };
-            return vec![(conflict.a1, to_cons(b1)), (conflict.a2, to_cons(b2))];
         }
         match conflict.kind {
             ConflictKind::Vertex { cell } => vec![
@@ -446,6 +483,7 @@ impl<'a> Search<'a> {
             self.dists[agent as usize].as_slice(),
             &constraints,
             &self.clock,
+            &mut self.scratch,
         )
         .ok_or(PlanFailure::Timeout)?;
         let mdd = Rc::new(mdd);

@@ -59,9 +59,18 @@ fn mdd_singletons() {
     let grid = Grid::new(3, 2);
     let dist = DistanceMap::bfs(&grid, Cell::new(2, 1));
     let clock = Budget::unlimited().start();
-    let mdd = Mdd::build(&grid, 0, 5, 3, dist.as_slice(), &Constraints::default(), &clock).unwrap();
+    let mut scratch = MddScratch::new(grid.n_cells());
+    let cons = Constraints::default();
+    let mdd = Mdd::build(&grid, 0, 5, 3, dist.as_slice(), &cons, &clock, &mut scratch).unwrap();
     assert_eq!(mdd.layers, vec![vec![0], vec![1, 3], vec![2, 4], vec![5]]);
     assert!(mdd.is_singleton(0, 0));
     assert!(!mdd.is_singleton(1, 1));
     assert!(mdd.is_singleton(5, 7));
+    // Forbidding one of the two middle cells at t = 1 leaves a path; forbidding both does not.
+    let one: FxHashSet<(u32, u32)> = [(1, 1)].into_iter().collect();
+    assert!(mdd.avoids(&grid, &one, &mut scratch));
+    let both: FxHashSet<(u32, u32)> = [(1, 1), (3, 1)].into_iter().collect();
+    assert!(!mdd.avoids(&grid, &both, &mut scratch));
+    let parked: FxHashSet<(u32, u32)> = [(5, 9)].into_iter().collect();
+    assert!(!mdd.avoids(&grid, &parked, &mut scratch));
 }
