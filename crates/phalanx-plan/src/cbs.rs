@@ -15,7 +15,7 @@
 //! agent pair.
 //!
 //! Termination: every low-level search is finite (see [`crate::astar`]), and arrival times
-//! are bounded by [`crate::astar::joint_horizon_bound`] (a plan needs fewer steps than there
+//! are bounded by `astar::joint_horizon_bound` (a plan needs fewer steps than there
 //! are joint placements), so on small unsolvable instances the constraint tree is finite and
 //! CBS returns `Unsolvable`; on large ones the budget ends it.
 //!
