@@ -489,8 +489,15 @@ pub(crate) struct MddScratch {
 }
 
 impl MddScratch {
-    pub(crate) fn new(n_cells: usize) -> MddScratch {
-        MddScratch { stamp: vec![0; n_cells], mark: 0 }
+    /// Scratch space, allocated on first use (one `u32` per cell of the grid).
+    pub(crate) fn new() -> MddScratch {
+        MddScratch { stamp: Vec::new(), mark: 0 }
+    }
+
+    fn ensure(&mut self, n_cells: usize) {
+        if self.stamp.len() < n_cells {
+            self.stamp.resize(n_cells, 0);
+        }
     }
 
     /// A mark no cell carries yet.
@@ -519,6 +526,7 @@ impl Mdd {
         clock: &BudgetClock,
         scratch: &mut MddScratch,
     ) -> Option<Mdd> {
+        scratch.ensure(grid.n_cells());
         let mut layers: Vec<Vec<u32>> = Vec::with_capacity(cost as usize + 1);
         layers.push(vec![start]);
         for t in 1..=cost {
@@ -581,6 +589,7 @@ impl Mdd {
         forbidden: &FxHashSet<(u32, u32)>,
         scratch: &mut MddScratch,
     ) -> bool {
+        scratch.ensure(grid.n_cells());
         let cost = self.layers.len() as u32 - 1;
         let goal = self.layers[cost as usize][0];
         if forbidden.iter().any(|&(cell, t)| cell == goal && t >= cost) {

@@ -202,7 +202,7 @@ impl<'a> Search<'a> {
             open: BinaryHeap::new(),
             max_time: astar::joint_horizon_bound(instance),
             mdds: FxHashMap::default(),
-            scratch: MddScratch::new(grid.n_cells()),
+            scratch: MddScratch::new(),
         }
     }
 

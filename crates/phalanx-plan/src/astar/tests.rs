@@ -59,7 +59,7 @@ fn mdd_singletons() {
     let grid = Grid::new(3, 2);
     let dist = DistanceMap::bfs(&grid, Cell::new(2, 1));
     let clock = Budget::unlimited().start();
-    let mut scratch = MddScratch::new(grid.n_cells());
+    let mut scratch = MddScratch::new();
     let cons = Constraints::default();
     let mdd = Mdd::build(&grid, 0, 5, 3, dist.as_slice(), &cons, &clock, &mut scratch).unwrap();
     assert_eq!(mdd.layers, vec![vec![0], vec![1, 3], vec![2, 4], vec![5]]);
