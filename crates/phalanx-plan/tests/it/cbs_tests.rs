@@ -233,3 +233,31 @@ fn cbs_open_grid_crossings_match_brute_force() {
         }
     }
 }
+
+#[test]
+fn cbs_corridor_swaps_end_with_an_outcome() {
+    // No room to pass in a one-wide corridor: unsolvable. Small placement counts make the
+    // constraint tree finite (Unsolvable); larger ones end on the budget, never hang.
+    let corridor = |len: u32, pairs: &[(i32, i32)]| {
+        Instance::new(
+            Grid::new(len, 1),
+            pairs.iter().map(|&(s, _)| Cell::new(s, 0)).collect(),
+            pairs.iter().map(|&(_, g)| Cell::new(g, 0)).collect(),
+        )
+        .unwrap()
+    };
+    let small = corridor(4, &[(0, 3), (3, 0)]);
+    let report = cbs::solve(&small, &cbs::CbsConfig::default(), &Budget::seconds(20.0));
+    assert_eq!(report.result.unwrap_err(), PlanFailure::Unsolvable);
+    let large = corridor(12, &[(0, 11), (5, 6), (11, 0)]);
+    for config in all_configs() {
+        let report = cbs::solve(&large, &config, &Budget::seconds(0.5));
+        let failure = report.result.unwrap_err();
+        assert!(matches!(failure, PlanFailure::Unsolvable | PlanFailure::Timeout));
+        assert!(report.stats.runtime_s < 2.0);
+    }
+    let report = ecbs::solve(&large, &ecbs::EcbsConfig::default(), &Budget::seconds(0.5));
+    assert!(report.result.is_err());
+    let report = astar::solve(&large, &astar::AStarConfig::default(), &Budget::seconds(0.5));
+    assert!(report.result.is_err());
+}
