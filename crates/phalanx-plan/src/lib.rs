@@ -1,0 +1,58 @@
+//! Classical multi-agent path-finding planners of phalanx, one module per algorithm, each with
+//! a free-function entry point `solve(&Instance, &Config, &Budget) -> PlanReport`:
+//!
+//! - [`astar`], space-time A* (the low level of CBS/ECBS) and prioritised planning;
+//! - [`cbs`], Conflict-Based Search, optimal for the sum of costs, with the ICBS improvements,
+//!   rectangle (symmetry) reasoning and the WDG heuristic;
+//! - [`ecbs`], bounded-suboptimal Enhanced CBS (focal search);
+//! - [`joint_astar`], joint-state A*;
+//! - [`swarm`], SWARM-MAPF.
+//!
+//! Planners never panic on an unsolvable instance, a timeout or a node limit: those are
+//! [`PlanFailure`] outcomes, and [`SearchStats`] always come back.
+//!
+//! ```
+//! use phalanx_core::{Cell, Grid, Instance, validate};
+//! use phalanx_plan::{Budget, cbs};
+//!
+//! let grid = Grid::new(3, 3);
+//! let starts = vec![Cell::new(0, 1), Cell::new(1, 0)];
+//! let goals = vec![Cell::new(2, 1), Cell::new(1, 2)];
+//! let inst = Instance::new(grid, starts, goals).unwrap();
+//! let report = cbs::solve(&inst, &cbs::CbsConfig::default(), &Budget::seconds(1.0));
+//! let plan = report.result.unwrap();
+//! validate(&inst, &plan).unwrap();
+//! ```
+
+pub mod astar;
+mod budget;
+pub mod cbs;
+pub mod ecbs;
+pub mod joint_astar;
+pub mod planner;
+pub mod swarm;
+
+pub use budget::{Budget, BudgetClock, PlanFailure, PlanReport, SearchStats};
+pub use planner::{PlannerChoice, SolveSummary, run_planner};
+
+use phalanx_core::Instance;
+
+/// A planner and its settings (closed, config-driven).
+#[derive(Debug, Clone, PartialEq)]
+pub enum PlannerSpec {
+    /// Prioritised space-time A*.
+    SpaceTimeAStar(astar::AStarConfig),
+    /// Conflict-Based Search (optimal).
+    Cbs(cbs::CbsConfig),
+    /// Enhanced CBS (bounded suboptimal).
+    Ecbs(ecbs::EcbsConfig),
+}
+
+/// Runs the planner `spec` names.
+pub fn solve(instance: &Instance, spec: &PlannerSpec, budget: &Budget) -> PlanReport {
+    match spec {
+        PlannerSpec::SpaceTimeAStar(config) => astar::solve(instance, config, budget),
+        PlannerSpec::Cbs(config) => cbs::solve(instance, config, budget),
+        PlannerSpec::Ecbs(config) => ecbs::solve(instance, config, budget),
+    }
+}
