@@ -136,6 +136,15 @@ fn demo_steps(instance: &Path, out: &Path) -> Vec<Vec<String>> {
     }
     if has("sim") {
         steps.push(vec!["sim".into(), s(instance), "--policy".into(), "greedy".into()]);
+        if has("solve") {
+            let plan = out.join("plan-swarm.yaml");
+            steps.push(vec![
+                "sim".into(),
+                s(instance),
+                "--policy".into(),
+                format!("plan:{}", s(&plan)),
+            ]);
+        }
     }
     steps
 }

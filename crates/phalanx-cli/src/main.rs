@@ -11,6 +11,7 @@
 mod generate;
 mod info;
 mod sim;
+mod solve;
 mod util;
 mod validate;
 
@@ -38,6 +39,8 @@ enum Command {
     Validate(validate::Args),
     /// Run episodes in the simulation environment with a scripted policy or a plan replay.
     Sim(sim::SimCmd),
+    /// Plan an instance with a centralised planner and write the plan (libMultiRobotPlanning YAML).
+    Solve(solve::SolveCmd),
 }
 
 fn main() -> ExitCode {
@@ -58,6 +61,7 @@ fn main() -> ExitCode {
         Command::Info(args) => info::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Sim(cmd) => sim::run(cmd),
+        Command::Solve(cmd) => solve::run(cmd),
     };
     match res {
         Ok(code) => code,

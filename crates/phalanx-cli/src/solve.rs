@@ -4,22 +4,19 @@
 //!
 //! Exit codes: 0 a valid plan came back, 1 no plan (unsolvable, timeout, node limit) or an
 //! invalid one; bad input is an error (`main` maps it to 2).
-//!
-//! Wiring (for the integrator): `mod solve;` in `main.rs`, a `Solve(solve::SolveCmd)`
-//! subcommand calling `solve::run`, and `phalanx-plan`, `serde_json` in this crate's
-//! dependencies; `phalanx_io::read_instance` / `write_plan` are the I/O crate's readers and
-//! writers (rename to the merged names).
 
-use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context;
+use phalanx_io::PlanStats;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
+
+use crate::util;
 
 /// The planners `phalanx solve` offers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -41,6 +38,9 @@ pub(crate) enum PlannerName {
 pub(crate) struct SolveCmd {
     /// The instance: libMultiRobotPlanning `.yaml` or MovingAI `.scen`.
     instance: PathBuf,
+    /// Use only the first N agents of the instance file.
+    #[arg(long)]
+    agents: Option<usize>,
     /// The planner.
     #[arg(long, value_enum, default_value = "cbs")]
     planner: PlannerName,
@@ -62,8 +62,8 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     if !(cmd.time_limit.is_finite() && cmd.time_limit > 0.0) {
         anyhow::bail!("--time-limit must be a positive number of seconds, not {}", cmd.time_limit);
     }
-    let instance = phalanx_io::read_instance(&cmd.instance)
-        .with_context(|| format!("reading instance {}", cmd.instance.display()))?;
+    let named = util::read_instance(&cmd.instance, cmd.agents)?;
+    let instance = &named.instance;
     let choice = match cmd.planner {
         PlannerName::Astar => PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()),
         PlannerName::Cbs => PlannerChoice::Cbs(cbs::CbsConfig::default()),
@@ -78,17 +78,21 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     };
     let budget =
         Budget { time_limit: Some(Duration::from_secs_f64(cmd.time_limit)), node_limit: None };
-    let report = run_planner(&instance, &choice, &budget);
-    let summary = SolveSummary::new(&instance, &choice, &report);
+    let report = run_planner(instance, &choice, &budget);
+    let summary = SolveSummary::new(instance, &choice, &report);
     if let (Some(path), Ok(plan)) = (&cmd.output, &report.result) {
-        phalanx_io::write_plan(path, plan, &report.stats)
+        let stats = PlanStats {
+            high_level_expanded: report.stats.high_level_expanded,
+            low_level_expanded: report.stats.low_level_expanded,
+            ..PlanStats::of(plan, report.stats.runtime_s)
+        };
+        phalanx_io::write_plan_named(path, plan, &named.names, &stats)
             .with_context(|| format!("writing plan {}", path.display()))?;
     }
-    let mut out = std::io::stdout().lock();
     if cmd.json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&summary)?)?;
+        util::print_json(&serde_json::to_value(&summary)?)?;
     } else {
-        writeln!(out, "{}", summary.to_text())?;
+        util::print(&format!("{}\n", summary.to_text()))?;
     }
     Ok(if summary.outcome == Outcome::Solved { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }
