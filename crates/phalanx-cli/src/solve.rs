@@ -67,10 +67,7 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     let choice = match cmd.planner {
         PlannerName::Astar => PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()),
         PlannerName::Cbs => PlannerChoice::Cbs(cbs::CbsConfig::default()),
-        PlannerName::Ecbs => PlannerChoice::Ecbs(ecbs::EcbsConfig {
-            w: cmd.weight.unwrap_or(1.2),
-            ..ecbs::EcbsConfig::default()
-        }),
+        PlannerName::Ecbs => PlannerChoice::Ecbs(ecbs::EcbsConfig { w: cmd.weight.unwrap_or(1.2) }),
         PlannerName::Jsa => PlannerChoice::JointAStar(JointAStarConfig::with_objective(
             Objective::Weighted(cmd.weight.unwrap_or(1.0)),
         )),
