@@ -168,15 +168,7 @@ impl BatchEnv {
                 rewards.fill(0.0);
                 return;
             }
-            let step = env.step(&actions[i * n..(i + 1) * n]);
-            rewards.copy_from_slice(step.rewards);
-            *outcome = Outcome {
-                team_reward: step.team_reward,
-                terminated: step.terminated,
-                truncated: step.truncated,
-                n_cancelled: step.info.n_cancelled,
-                formation_loss: step.info.formation_loss,
-            };
+            record(env.step(&actions[i * n..(i + 1) * n]), rewards, outcome);
             env.observe(obs);
         });
     }
@@ -231,15 +223,7 @@ impl BatchEnv {
                 rewards.fill(0.0);
                 return;
             }
-            let step = env.step_chosen();
-            rewards.copy_from_slice(step.rewards);
-            *outcome = Outcome {
-                team_reward: step.team_reward,
-                terminated: step.terminated,
-                truncated: step.truncated,
-                n_cancelled: step.info.n_cancelled,
-                formation_loss: step.info.formation_loss,
-            };
+            record(env.step_chosen(), rewards, outcome);
             env.observe(obs);
         });
     }
@@ -295,4 +279,16 @@ impl BatchEnv {
                 f(i, env, &mut obs, rewards, outcome);
             });
     }
+}
+
+/// Copies one episode's step result into the batch's reward row and outcome.
+fn record(step: crate::Step<'_>, rewards: &mut [f32], outcome: &mut Outcome) {
+    rewards.copy_from_slice(step.rewards);
+    *outcome = Outcome {
+        team_reward: step.team_reward,
+        terminated: step.terminated,
+        truncated: step.truncated,
+        n_cancelled: step.info.n_cancelled,
+        formation_loss: step.info.formation_loss,
+    };
 }

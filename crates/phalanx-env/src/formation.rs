@@ -59,13 +59,7 @@ pub fn formation_instance(
         if !ok {
             continue;
         }
-        let mut cells: Vec<Cell> =
-            (0..side * side).map(|i| Cell::new((i % side) as i32, (i / side) as i32)).collect();
-        for i in 0..n_agents {
-            let j = rng.random_range(i as u32..side * side) as usize;
-            cells.swap(i, j);
-        }
-        cells.truncate(n_agents);
+        let cells = phalanx_gen::random_formation(side, n_agents, rng);
         let reach = 2 * r + side as i32;
         let (dx, dy) = (rng.random_range(-reach..=reach), rng.random_range(-reach..=reach));
         let goals: Vec<Cell> =

@@ -7,8 +7,8 @@
 //! evaluation), so no evaluation seed equals a training seed whatever the indices. The two
 //! types share no constructor and no method takes the other's indices.
 
-use phalanx_core::{Cell, Grid, Instance};
-use phalanx_gen::{GenConfig, region_side};
+use phalanx_core::{Grid, Instance};
+use phalanx_gen::{GenConfig, random_formation, region_side};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -118,13 +118,7 @@ impl TrainPool {
         let grid = &self.maps[rng.random_range(0..self.maps.len() as u32) as usize];
         let r = region_side(self.config.size);
         assert!(n_agents >= 1 && n_agents <= (r * r) as usize, "{n_agents} agents do not fit");
-        let mut cells: Vec<Cell> =
-            (0..r * r).map(|i| Cell::new((i % r) as i32, (i / r) as i32)).collect();
-        for i in 0..n_agents {
-            let j = rng.random_range(i as u32..r * r) as usize;
-            cells.swap(i, j);
-        }
-        cells.truncate(n_agents);
+        let cells = random_formation(r, n_agents, rng);
         let far = (self.config.size - r) as i32;
         let goals = cells.iter().map(|c| c.offset(far, far)).collect();
         // The regions are free squares and the generator checked one start-goal pair, so

@@ -103,7 +103,7 @@ pub fn generate(config: &GenConfig) -> Result<Instance, GenError> {
     let far = (size - r) as i32;
     let start_region = (Cell::new(0, 0), Cell::new(r as i32 - 1, r as i32 - 1));
     let goal_region = (Cell::new(far, far), Cell::new(size as i32 - 1, size as i32 - 1));
-    let starts = formation(r, n_agents, &mut rng);
+    let starts = random_formation(r, n_agents, &mut rng);
     let goals: Vec<Cell> = starts.iter().map(|c| c.offset(far, far)).collect();
     for _ in 0..MAX_ATTEMPTS {
         let grid =
@@ -119,7 +119,11 @@ pub fn generate(config: &GenConfig) -> Result<Instance, GenError> {
 
 /// `n_agents` distinct cells of the `r × r` region at the origin, in draw order (a partial
 /// Fisher–Yates shuffle of the region's cells in row-major order).
-fn formation(r: u32, n_agents: usize, rng: &mut ChaCha8Rng) -> Vec<Cell> {
+///
+/// # Panics
+/// If `n_agents > r * r`.
+pub fn random_formation(r: u32, n_agents: usize, rng: &mut ChaCha8Rng) -> Vec<Cell> {
+    assert!(n_agents <= (r * r) as usize, "{n_agents} cells do not fit in {r}x{r}");
     let mut cells: Vec<Cell> =
         (0..r * r).map(|i| Cell::new((i % r) as i32, (i / r) as i32)).collect();
     for i in 0..n_agents {
