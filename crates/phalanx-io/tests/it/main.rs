@@ -15,9 +15,10 @@ pub(crate) fn test_data() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../test-data/movingai")
 }
 
-/// The shared benchmark maps, when this machine has them (`PHALANX_MAPS` overrides).
+/// The shared benchmark maps in `../shared/maps/movingai` beside the checkout, when present
+/// (`PHALANX_MAPS` overrides).
 pub(crate) fn shared_maps() -> Option<PathBuf> {
-    let dir = std::env::var_os("PHALANX_MAPS")
-        .map_or_else(|| PathBuf::from("/work/shared/maps/movingai"), PathBuf::from);
+    let beside = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/maps/movingai");
+    let dir = std::env::var_os("PHALANX_MAPS").map_or(beside, PathBuf::from);
     dir.is_dir().then_some(dir)
 }
