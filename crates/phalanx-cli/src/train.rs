@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use burn::tensor::Device;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use phalanx_env::{EnvConfig, PoolConfig};
 use phalanx_rl::{
     FormationEnv, Learner, LearnerConfig, MarlEnv, PathFindingEnv, QNetConfig, metrics,
@@ -175,13 +175,15 @@ fn train(
     let step_limit = config.env.step_limit.unwrap_or(3 * config.pool.size) as usize;
     let start = learner.counters();
     let bar = ProgressBar::new(config.steps);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} steps, {per_sec}, eta {eta} {msg}",
-        )
-        .expect("a valid template")
-        .progress_chars("=> "),
-    );
+    let style = ProgressStyle::with_template(
+        "{elapsed_precise} [{bar:30}] {pos}/{len} steps, {sps} steps/s, eta {eta} {msg}",
+    )
+    .expect("a valid template")
+    .with_key("sps", |state: &ProgressState, out: &mut dyn std::fmt::Write| {
+        let _ = write!(out, "{:.0}", state.per_sec());
+    })
+    .progress_chars("=> ");
+    bar.set_style(style);
     bar.set_position(start.env_steps.min(config.steps));
     bar.reset_eta();
     bar.enable_steady_tick(Duration::from_millis(500));
