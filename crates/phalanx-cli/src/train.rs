@@ -110,16 +110,17 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     if let Some(steps) = cmd.steps {
         config.steps = steps;
     }
-    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let json = serde_json::to_string_pretty(&config).expect("the config serialises");
-    fs::write(&saved_config, json + "\n")
-        .with_context(|| format!("writing {}", saved_config.display()))?;
-
     let device = Device::flex().autodiff();
     let checkpoint = dir.join("checkpoint");
     let learner = if cmd.resume {
         Learner::load(&checkpoint, &device).context("resuming")?
     } else {
+        let max = config.net.n_agents_max;
+        anyhow::ensure!(
+            (1..=max).contains(&config.n_agents),
+            "n_agents {} must be between 1 and the network's n_agents_max {max}",
+            config.n_agents
+        );
         Learner::new(config.net.clone(), config.learner.clone(), config.n_agents, cmd.seed, &device)
     };
     if learner.n_agents() != config.n_agents {
@@ -130,6 +131,11 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         ));
         config.n_agents = learner.n_agents();
     }
+    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let json = serde_json::to_string_pretty(&config).expect("the config serialises");
+    fs::write(&saved_config, json + "\n")
+        .with_context(|| format!("writing {}", saved_config.display()))?;
+
     let env_err = || format!("building the {:?} environment", cmd.task);
     match cmd.task {
         TaskName::PathFinding => {

@@ -204,5 +204,10 @@ fn train_bad_config_exits_2_naming_the_file() {
     std::fs::write(d.join("typo.json"), r#"{"n_agnets": 2}"#).unwrap();
     let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "typo.json"]), 2);
     assert!(stderr.contains("typo.json") && stderr.contains("n_agnets"), "{stderr}");
+    std::fs::write(d.join("many.json"), r#"{"n_agents": 9}"#).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "many.json"]), 2);
+    assert!(stderr.contains("n_agents 9"), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["train", "pathfinding", "--resume"]), 2);
+    assert!(stderr.contains("checkpoint"), "{stderr}");
     assert!(!d.join("run").exists(), "nothing written on bad input");
 }
