@@ -193,6 +193,39 @@ fn train_writes_metrics_and_checkpoint_then_resumes() {
 }
 
 #[test]
+fn train_with_updates_then_resume_continues() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = r#"{
+        "n_agents": 2, "checkpoint_every": 5, "pool": {"n_maps": 2}, "env": {"step_limit": 10},
+        "learner": {"gamma": 0.95, "lr": 0.0005, "batch_size": 4, "replay_capacity": 100,
+            "sequence": {"kind": "windows", "len": 4, "burn_in": 2},
+            "target_update_interval": 10,
+            "epsilon": {"start": 1.0, "end": 0.05, "decay_steps": 1000},
+            "grad_clip_norm": 10.0, "learning_starts": 2, "train_every": 4}
+    }"#;
+    std::fs::write(d.join("cfg.json"), config).unwrap();
+    let args = ["train", "formation", "--config", "cfg.json", "--steps", "100", "--out", "run"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    let first = summary_value(&stdout, "updates");
+    assert!(first >= 10, "{stdout}");
+    let metrics = read_metrics(&d.join("run/metrics.jsonl"));
+    let n_losses = metrics.iter().filter(|(name, _)| name == "losses/td_loss").count();
+    assert_eq!(n_losses as u64, first);
+    let args = ["train", "formation", "--resume", "--steps", "140", "--out", "run"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    assert!(summary_value(&stdout, "updates") > first, "{stdout}");
+    assert!(summary_value(&stdout, "env steps") >= 140, "{stdout}");
+}
+
+/// The integer after `key` in `phalanx train`'s summary table.
+#[track_caller]
+fn summary_value(stdout: &str, key: &str) -> u64 {
+    let line = stdout.lines().find(|it| it.starts_with(key)).expect("a summary row");
+    line[key.len()..].trim().parse().unwrap()
+}
+
+#[test]
 fn train_bad_config_exits_2_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
