@@ -1,5 +1,5 @@
 //! The `phalanx` command-line tool: generate, inspect and validate formation MAPF instances
-//! and plans, simulate episodes and run the planners.
+//! and plans, simulate episodes, run the planners and train the learned policies.
 //!
 //! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
 //! `run(Args) -> anyhow::Result<ExitCode>`; this file only holds the [`Command`] enum and
@@ -12,6 +12,7 @@ mod generate;
 mod info;
 mod sim;
 mod solve;
+mod train;
 mod util;
 mod validate;
 
@@ -41,6 +42,8 @@ enum Command {
     Sim(sim::SimCmd),
     /// Plan an instance with a centralised planner and write the plan (libMultiRobotPlanning YAML).
     Solve(solve::SolveCmd),
+    /// Train a path-finding or formation policy (VDN + double DQN) on the training pool.
+    Train(train::TrainCmd),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +65,7 @@ fn main() -> ExitCode {
         Command::Validate(args) => validate::run(args),
         Command::Sim(cmd) => sim::run(cmd),
         Command::Solve(cmd) => solve::run(cmd),
+        Command::Train(cmd) => train::run(cmd),
     };
     match res {
         Ok(code) => code,

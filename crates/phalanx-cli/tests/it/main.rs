@@ -153,3 +153,94 @@ fn bad_input_exits_2() {
     check(&phalanx(d, &["gen", "-o", "x.txt"]), 2);
     assert!(!d.join("x.yaml").exists());
 }
+
+/// The metrics of a run: `(name, step)` of every line of `metrics.jsonl`.
+fn read_metrics(path: &Path) -> Vec<(String, u64)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .map(|line| {
+            let v: serde_json::Value = serde_json::from_str(line).unwrap();
+            assert!(v["value"].is_number(), "{line}");
+            (v["name"].as_str().unwrap().to_owned(), v["step"].as_u64().unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn train_writes_metrics_and_checkpoint_then_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = r#"{"n_agents": 2, "pool": {"n_maps": 4}, "env": {"step_limit": 20}}"#;
+    std::fs::write(d.join("cfg.json"), config).unwrap();
+    let args = ["train", "pathfinding", "--config", "cfg.json", "--steps", "200", "--out", "run"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    assert!(stdout.contains("env steps"), "{stdout}");
+    assert!(d.join("run/checkpoint").is_file());
+    let first = read_metrics(&d.join("run/metrics.jsonl"));
+    let n_episodes = first.iter().filter(|(name, _)| name == "charts/episodic_return").count();
+    assert_eq!(n_episodes, 10, "200 steps of 20-step episodes");
+    assert!(first.iter().any(|(name, _)| name == "charts/success_rate"));
+    assert!(first.iter().any(|(name, _)| name == "perf/sps"));
+    assert_eq!(first.last().unwrap().1, 200);
+
+    // Resumed: the saved config is read back, the counters continue, metrics are appended.
+    let args = ["train", "pathfinding", "--resume", "--steps", "300", "--out", "run"];
+    check(&phalanx(d, &args), 0);
+    let both = read_metrics(&d.join("run/metrics.jsonl"));
+    assert_eq!(both[..first.len()], first[..]);
+    assert_eq!(both.last().unwrap().1, 300);
+    assert!(both[first.len()..].iter().all(|(_, step)| *step > 200));
+}
+
+#[test]
+fn train_with_updates_then_resume_continues() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = r#"{
+        "n_agents": 2, "checkpoint_every": 5, "pool": {"n_maps": 2}, "env": {"step_limit": 10},
+        "learner": {"gamma": 0.95, "lr": 0.0005, "batch_size": 4, "replay_capacity": 100,
+            "sequence": {"kind": "windows", "len": 4, "burn_in": 2},
+            "target_update_interval": 10,
+            "epsilon": {"start": 1.0, "end": 0.05, "decay_steps": 1000},
+            "grad_clip_norm": 10.0, "learning_starts": 2, "train_every": 4}
+    }"#;
+    std::fs::write(d.join("cfg.json"), config).unwrap();
+    let args = ["train", "formation", "--config", "cfg.json", "--steps", "100", "--out", "run"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    let first = summary_value(&stdout, "updates");
+    assert!(first >= 10, "{stdout}");
+    let metrics = read_metrics(&d.join("run/metrics.jsonl"));
+    let n_losses = metrics.iter().filter(|(name, _)| name == "losses/td_loss").count();
+    assert_eq!(n_losses as u64, first);
+    let args = ["train", "formation", "--resume", "--steps", "140", "--out", "run"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    assert!(summary_value(&stdout, "updates") > first, "{stdout}");
+    assert!(summary_value(&stdout, "env steps") >= 140, "{stdout}");
+}
+
+/// The integer after `key` in `phalanx train`'s summary table.
+#[track_caller]
+fn summary_value(stdout: &str, key: &str) -> u64 {
+    let line = stdout.lines().find(|it| it.starts_with(key)).expect("a summary row");
+    line[key.len()..].trim().parse().unwrap()
+}
+
+#[test]
+fn train_bad_config_exits_2_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "nope.json"]), 2);
+    assert!(stderr.contains("nope.json"), "{stderr}");
+    std::fs::write(d.join("bad.json"), "{ n_agents: 2").unwrap();
+    let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "bad.json"]), 2);
+    assert!(stderr.contains("bad.json"), "{stderr}");
+    std::fs::write(d.join("typo.json"), r#"{"n_agnets": 2}"#).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "typo.json"]), 2);
+    assert!(stderr.contains("typo.json") && stderr.contains("n_agnets"), "{stderr}");
+    std::fs::write(d.join("many.json"), r#"{"n_agents": 9}"#).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "many.json"]), 2);
+    assert!(stderr.contains("n_agents 9"), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["train", "pathfinding", "--resume"]), 2);
+    assert!(stderr.contains("checkpoint"), "{stderr}");
+    assert!(!d.join("run").exists(), "nothing written on bad input");
+}

@@ -1,6 +1,7 @@
 //! Integration tests of phalanx-rl: network shapes, learner maths, replay, checkpoints and a toy
 //! cooperative problem the learner must solve.
 
+mod adapter;
 mod checkpoint;
 mod corridor;
 mod learner;

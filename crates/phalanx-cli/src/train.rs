@@ -1,0 +1,286 @@
+//! `phalanx train pathfinding|formation`: trains a low-level policy (VDN + double DQN, SPEC §6)
+//! on the training pool, with a progress bar on stderr, metrics appended as JSON lines to
+//! `DIR/metrics.jsonl` (one `{"name", "step", "value"}` object per value, names of
+//! `phalanx_rl::metrics`) and an atomic checkpoint `DIR/checkpoint` every N updates and at the
+//! end. `--resume` continues from `DIR/checkpoint`.
+//!
+//! The run's settings (`--config FILE`, JSON, every field optional) are written to
+//! `DIR/config.json`; a resumed run without `--config` reads them back from there.
+
+use std::collections::VecDeque;
+use std::fs;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use burn::tensor::Device;
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
+use phalanx_env::{EnvConfig, PoolConfig};
+use phalanx_rl::{
+    FormationEnv, Learner, LearnerConfig, MarlEnv, PathFindingEnv, QNetConfig, metrics,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::util;
+
+/// Episodes in the progress bar's recent success rate.
+const SUCCESS_WINDOW: usize = 100;
+
+/// The low-level policies `phalanx train` trains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum TaskName {
+    /// Path finding: reach the goals across a pool map.
+    #[value(name = "pathfinding")]
+    PathFinding,
+    /// Formation: reach a random target formation from a random placement.
+    Formation,
+}
+
+/// Trains a path-finding or formation policy.
+#[derive(Debug, clap::Args)]
+pub(crate) struct TrainCmd {
+    /// The policy to train.
+    #[arg(value_enum)]
+    task: TaskName,
+    /// Settings (JSON, every field optional): n_agents, steps, checkpoint_every, net, learner,
+    /// env, pool.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Output directory: metrics.jsonl, checkpoint, config.json.
+    #[arg(long, value_name = "DIR", default_value = "run")]
+    out: PathBuf,
+    /// Continue from DIR/checkpoint.
+    #[arg(long)]
+    resume: bool,
+    /// Seed of the learner (network, exploration, episode draws).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Total environment steps of the run (a resumed run counts the steps already taken);
+    /// overrides the config's `steps`.
+    #[arg(long, value_name = "N")]
+    steps: Option<u64>,
+}
+
+/// Settings of a training run. Defaults: 3 agents, 200 000 steps, a checkpoint every 1000
+/// updates, the default network and learner, the paper's environment and pool.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+struct TrainConfig {
+    /// Agents per episode.
+    n_agents: usize,
+    /// Total environment steps.
+    steps: u64,
+    /// Gradient updates between checkpoints.
+    checkpoint_every: u64,
+    /// Network sizes (ignored on resume: the checkpoint's).
+    net: QNetConfig,
+    /// Learner hyper-parameters (ignored on resume: the checkpoint's).
+    learner: LearnerConfig,
+    /// Field of view and step limit (the task is the command's).
+    env: EnvConfig,
+    /// The training pool.
+    pool: PoolConfig,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            n_agents: 3,
+            steps: 200_000,
+            checkpoint_every: 1000,
+            net: QNetConfig::default(),
+            learner: LearnerConfig::default(),
+            env: EnvConfig::default(),
+            pool: PoolConfig::default(),
+        }
+    }
+}
+
+/// Runs `phalanx train`.
+pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
+    let dir = &cmd.out;
+    let saved_config = dir.join("config.json");
+    let mut config = match (&cmd.config, cmd.resume) {
+        (Some(path), _) => read_config(path)?,
+        (None, true) if saved_config.exists() => read_config(&saved_config)?,
+        (None, _) => TrainConfig::default(),
+    };
+    if let Some(steps) = cmd.steps {
+        config.steps = steps;
+    }
+    let device = Device::flex().autodiff();
+    let checkpoint = dir.join("checkpoint");
+    let learner = if cmd.resume {
+        Learner::load(&checkpoint, &device).context("resuming")?
+    } else {
+        let max = config.net.n_agents_max;
+        anyhow::ensure!(
+            (1..=max).contains(&config.n_agents),
+            "n_agents {} must be between 1 and the network's n_agents_max {max}",
+            config.n_agents
+        );
+        Learner::new(config.net.clone(), config.learner.clone(), config.n_agents, cmd.seed, &device)
+    };
+    if learner.n_agents() != config.n_agents {
+        util::warn(&format!(
+            "the checkpoint trains {} agents; config n_agents {} ignored",
+            learner.n_agents(),
+            config.n_agents
+        ));
+        config.n_agents = learner.n_agents();
+    }
+    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let json = serde_json::to_string_pretty(&config).expect("the config serialises");
+    fs::write(&saved_config, json + "\n")
+        .with_context(|| format!("writing {}", saved_config.display()))?;
+
+    let env_err = || format!("building the {:?} environment", cmd.task);
+    match cmd.task {
+        TaskName::PathFinding => {
+            let env = PathFindingEnv::new(&config.pool, config.env.clone(), config.n_agents)
+                .with_context(env_err)?;
+            train(env, learner, &config, dir, cmd.resume)
+        }
+        TaskName::Formation => {
+            let env = FormationEnv::new(&config.pool, config.env.clone(), config.n_agents)
+                .with_context(env_err)?;
+            train(env, learner, &config, dir, cmd.resume)
+        }
+    }
+}
+
+fn read_config(path: &Path) -> anyhow::Result<TrainConfig> {
+    let text =
+        fs::read_to_string(path).with_context(|| format!("reading config {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("parsing config {}", path.display()))
+}
+
+/// The collect/update loop with the progress bar, the metrics file and the checkpoints.
+/// `Learner::train` runs in chunks of `checkpoint_every × train_every` environment steps
+/// (about `checkpoint_every` updates once learning has started); a checkpoint is written after
+/// each chunk that crossed a multiple of `checkpoint_every` updates.
+fn train(
+    mut env: impl MarlEnv,
+    mut learner: Learner,
+    config: &TrainConfig,
+    dir: &Path,
+    resume: bool,
+) -> anyhow::Result<ExitCode> {
+    let metrics_path = dir.join("metrics.jsonl");
+    let checkpoint = dir.join("checkpoint");
+    let file = fs::OpenOptions::new()
+        .create(true)
+        .append(resume)
+        .write(true)
+        .truncate(!resume)
+        .open(&metrics_path)
+        .with_context(|| format!("opening {}", metrics_path.display()))?;
+
+    let step_limit = config.env.step_limit.unwrap_or(3 * config.pool.size) as usize;
+    let start = learner.counters();
+    let bar = ProgressBar::new(config.steps);
+    let style = ProgressStyle::with_template(
+        "{elapsed_precise} [{bar:30}] {pos}/{len} steps, {sps} steps/s, eta {eta} {msg}",
+    )
+    .expect("a valid template")
+    .with_key("sps", |state: &ProgressState, out: &mut dyn std::fmt::Write| {
+        let _ = write!(out, "{:.0}", state.per_sec());
+    })
+    .progress_chars("=> ");
+    bar.set_style(style);
+    bar.set_position(start.env_steps.min(config.steps));
+    bar.reset_eta();
+    bar.enable_steady_tick(Duration::from_millis(500));
+    let mut sink = Sink {
+        out: BufWriter::new(file),
+        err: None,
+        recent: VecDeque::new(),
+        bar: bar.clone(),
+        total: config.steps,
+        episodes: start.episodes,
+    };
+    let started = Instant::now();
+    let every = config.checkpoint_every.max(1);
+    let chunk = every.saturating_mul(learner.config().train_every.max(1));
+    let mut last_saved = start.updates / every;
+    while learner.counters().env_steps < config.steps {
+        let todo = (config.steps - learner.counters().env_steps).min(chunk);
+        learner.train(&mut env, todo, step_limit, &mut sink);
+        if let Some(err) = sink.err.take() {
+            return Err(err).with_context(|| format!("writing {}", metrics_path.display()));
+        }
+        let updates = learner.counters().updates;
+        if updates / every > last_saved {
+            last_saved = updates / every;
+            sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
+            learner.save(&checkpoint)?;
+        }
+    }
+    bar.finish_and_clear();
+    sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
+    learner.save(&checkpoint)?;
+
+    let counters = learner.counters();
+    let secs = started.elapsed().as_secs_f64().max(1e-9);
+    let sps = (counters.env_steps - start.env_steps) as f64 / secs;
+    util::print(&util::table(&[
+        ("env steps", counters.env_steps.to_string()),
+        ("episodes", counters.episodes.to_string()),
+        ("updates", counters.updates.to_string()),
+        ("steps/s", format!("{sps:.1}")),
+        ("success", format!("{:.2} (last {SUCCESS_WINDOW} episodes)", sink.success_rate())),
+        ("checkpoint", checkpoint.display().to_string()),
+    ]))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes metrics as JSON lines and drives the progress bar: steps and episodes, ε and the
+/// success rate of the last [`SUCCESS_WINDOW`] episodes.
+struct Sink {
+    out: BufWriter<fs::File>,
+    /// The first write error (the learner's sink cannot fail; the loop checks after each call).
+    err: Option<std::io::Error>,
+    recent: VecDeque<bool>,
+    bar: ProgressBar,
+    total: u64,
+    episodes: u64,
+}
+
+impl Sink {
+    fn success_rate(&self) -> f64 {
+        let n = self.recent.len().max(1) as f64;
+        self.recent.iter().filter(|&&it| it).count() as f64 / n
+    }
+}
+
+impl phalanx_rl::MetricSink for Sink {
+    fn record(&mut self, name: &'static str, env_step: u64, value: f64) {
+        match name {
+            metrics::SUCCESS => {
+                if self.recent.len() == SUCCESS_WINDOW {
+                    self.recent.pop_front();
+                }
+                self.recent.push_back(value > 0.5);
+            }
+            metrics::EPSILON => {
+                self.episodes += 1;
+                self.bar.set_position(env_step.min(self.total));
+                self.bar.set_message(format!(
+                    "| {} episodes, eps {value:.3}, success {:.2}",
+                    self.episodes,
+                    self.success_rate()
+                ));
+            }
+            _ => {}
+        }
+        if self.err.is_some() {
+            return;
+        }
+        let line = serde_json::json!({ "name": name, "step": env_step, "value": value });
+        if let Err(err) = writeln!(self.out, "{line}") {
+            self.err = Some(err);
+        }
+    }
+}
