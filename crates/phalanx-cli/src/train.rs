@@ -17,10 +17,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use phalanx_env::{EnvConfig, PoolConfig};
-use phalanx_rl::{
-    FormationEnv, Learner, LearnerConfig, MarlEnv, PathFindingEnv, QNetConfig, metrics,
-};
+use phalanx_env::{EnvConfig, PoolConfig, Task};
+use phalanx_rl::{Learner, LearnerConfig, MarlEnv, PoolEnv, QNetConfig, metrics};
 use serde::{Deserialize, Serialize};
 
 use crate::util;
@@ -136,19 +134,13 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     fs::write(&saved_config, json + "\n")
         .with_context(|| format!("writing {}", saved_config.display()))?;
 
-    let env_err = || format!("building the {:?} environment", cmd.task);
-    match cmd.task {
-        TaskName::PathFinding => {
-            let env = PathFindingEnv::new(&config.pool, config.env.clone(), config.n_agents)
-                .with_context(env_err)?;
-            train(env, learner, &config, dir, cmd.resume)
-        }
-        TaskName::Formation => {
-            let env = FormationEnv::new(&config.pool, config.env.clone(), config.n_agents)
-                .with_context(env_err)?;
-            train(env, learner, &config, dir, cmd.resume)
-        }
-    }
+    let task = match cmd.task {
+        TaskName::PathFinding => Task::PathFinding,
+        TaskName::Formation => Task::Formation,
+    };
+    let env = PoolEnv::new(task, &config.pool, config.env.clone(), config.n_agents)
+        .with_context(|| format!("building the {:?} environment", cmd.task))?;
+    train(env, learner, &config, dir, cmd.resume)
 }
 
 fn read_config(path: &Path) -> anyhow::Result<TrainConfig> {

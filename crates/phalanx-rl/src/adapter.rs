@@ -1,14 +1,14 @@
 //! [`MarlEnv`] over the simulator of `phalanx-env`: the path-finding and formation-training
-//! environments the low-level policies are trained in (SPEC §5, §6).
+//! environments the low-level policies are trained in (SPEC §5, §6), one type for every task.
 //!
 //! Each reset draws a map from the training pool ([`TrainPool`], generated once) and a fresh
-//! instance from a `ChaCha8Rng` seeded with the reset's seed: [`PathFindingEnv`] the
-//! generator's start and goal regions ([`TrainPool::sample`]), [`FormationEnv`] a random
-//! placement with a random target formation ([`TrainPool::sample_formation`]).
+//! instance from a `ChaCha8Rng` seeded with the reset's seed: for [`Task::Formation`] a
+//! random placement with a random target formation ([`TrainPool::sample_formation`]), for the
+//! other tasks the generator's start and goal regions ([`TrainPool::sample`]).
 //! Observations are written into [`ObsBuffers`]: the four grid channels, the goal vector, the
 //! mask of the task's clipping and the leader order of the task's rule.
 
-use phalanx_core::{Action, Instance};
+use phalanx_core::Action;
 use phalanx_env::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use phalanx_env::{Clip, Env, EnvConfig, EnvError, LeaderRule, PoolConfig, Task, TrainPool};
 use rand::SeedableRng;
@@ -20,11 +20,13 @@ use crate::env::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 /// [`phalanx_env::MAX_PLACEMENT_ATTEMPTS`] placements on its map).
 const FORMATION_MAP_TRIES: usize = 16;
 
-/// The simulator, the pool and the task's clipping and leader rule.
+/// A training environment on the pool: the simulator with the task's rewards, clipping and
+/// leader rule, and the instance draw of the task.
 #[derive(Debug, Clone)]
-struct PoolEnv {
+pub struct PoolEnv {
     env: Env,
     pool: TrainPool,
+    task: Task,
     n_agents: usize,
     clip: Clip,
     rule: LeaderRule,
@@ -32,7 +34,12 @@ struct PoolEnv {
 }
 
 impl PoolEnv {
-    fn new(
+    /// Generates the pool of `pool` once; episodes of `task` have `n_agents` agents and the
+    /// field of view and step limit of `env` (its task is replaced by `task`).
+    ///
+    /// # Panics
+    /// If `n_agents` is 0 or the pool has no maps.
+    pub fn new(
         task: Task,
         pool: &PoolConfig,
         env: EnvConfig,
@@ -45,6 +52,7 @@ impl PoolEnv {
         Ok(PoolEnv {
             env,
             pool,
+            task,
             n_agents,
             clip: task.clip(),
             rule: task.leader_rule(),
@@ -52,7 +60,12 @@ impl PoolEnv {
         })
     }
 
-    fn obs_shape(&self) -> ObsShape {
+    /// The simulator (positions, goals, time of the running episode).
+    pub fn env(&self) -> &Env {
+        &self.env
+    }
+
+    fn shape(&self) -> ObsShape {
         ObsShape {
             channels: CHANNELS,
             fov: self.env.config().fov as usize,
@@ -61,8 +74,47 @@ impl PoolEnv {
         }
     }
 
-    fn start(&mut self, instance: &Instance, obs: &mut ObsBuffers) {
-        self.env.reset(instance).expect("pool instances fit the environment");
+    /// Writes every agent's channels, goal vector and mask, then the leader order.
+    fn observe(&mut self, obs: &mut ObsBuffers) {
+        let shape = obs.shape;
+        assert_eq!(obs.n_agents, self.n_agents, "buffers of another agent count");
+        assert_eq!(shape, self.shape(), "buffers of another shape");
+        let grids = obs.grid.chunks_exact_mut(shape.grid_len());
+        let vectors = obs.vec.chunks_exact_mut(shape.env_vec);
+        let masks = obs.action_mask.chunks_exact_mut(shape.n_actions);
+        for (agent, ((grid, vector), mask)) in grids.zip(vectors).zip(masks).enumerate() {
+            self.env.write_grid(agent, grid);
+            self.env.write_vector(agent, vector);
+            self.env.write_mask(agent, self.clip, mask);
+        }
+        let order = self.env.begin_turns(self.rule);
+        obs.order.clear();
+        obs.order.extend(order.iter().map(|&agent| usize::from(agent)));
+    }
+}
+
+impl MarlEnv for PoolEnv {
+    fn n_agents(&self) -> usize {
+        self.n_agents
+    }
+
+    fn obs_shape(&self) -> ObsShape {
+        self.shape()
+    }
+
+    /// # Panics
+    /// For [`Task::Formation`], if no placement comes out on `FORMATION_MAP_TRIES` (16) drawn
+    /// maps (too many agents for the pool's maps).
+    fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let n_agents = self.n_agents;
+        let instance = match self.task {
+            Task::Formation => (0..FORMATION_MAP_TRIES)
+                .find_map(|_| self.pool.sample_formation(n_agents, &mut rng).ok())
+                .unwrap_or_else(|| panic!("no formation placement of {n_agents} agents")),
+            Task::PathFinding | Task::Meta => self.pool.sample(n_agents, &mut rng),
+        };
+        self.env.reset(&instance).expect("pool instances fit the environment");
         self.observe(obs);
     }
 
@@ -79,123 +131,5 @@ impl PoolEnv {
         };
         self.observe(obs);
         out
-    }
-
-    /// Writes every agent's channels, goal vector and mask, then the leader order.
-    fn observe(&mut self, obs: &mut ObsBuffers) {
-        let shape = obs.shape;
-        assert_eq!(obs.n_agents, self.n_agents, "buffers of another agent count");
-        assert_eq!(shape, self.obs_shape(), "buffers of another shape");
-        let grids = obs.grid.chunks_exact_mut(shape.grid_len());
-        let vectors = obs.vec.chunks_exact_mut(shape.env_vec);
-        let masks = obs.action_mask.chunks_exact_mut(shape.n_actions);
-        for (agent, ((grid, vector), mask)) in grids.zip(vectors).zip(masks).enumerate() {
-            self.env.write_grid(agent, grid);
-            self.env.write_vector(agent, vector);
-            self.env.write_mask(agent, self.clip, mask);
-        }
-        let order = self.env.begin_turns(self.rule);
-        obs.order.clear();
-        obs.order.extend(order.iter().map(|&agent| usize::from(agent)));
-    }
-}
-
-/// Path finding on the training pool: reach the goals (reward, clipping and leader order of
-/// [`Task::PathFinding`]).
-#[derive(Debug, Clone)]
-pub struct PathFindingEnv {
-    inner: PoolEnv,
-}
-
-impl PathFindingEnv {
-    /// Generates the pool of `pool` once; episodes have `n_agents` agents and the field of
-    /// view and step limit of `env` (its task is replaced by path finding).
-    ///
-    /// # Panics
-    /// If `n_agents` is 0 or the pool has no maps.
-    pub fn new(
-        pool: &PoolConfig,
-        env: EnvConfig,
-        n_agents: usize,
-    ) -> Result<PathFindingEnv, EnvError> {
-        Ok(PathFindingEnv { inner: PoolEnv::new(Task::PathFinding, pool, env, n_agents)? })
-    }
-
-    /// The simulator (positions, goals, time of the running episode).
-    pub fn env(&self) -> &Env {
-        &self.inner.env
-    }
-}
-
-impl MarlEnv for PathFindingEnv {
-    fn n_agents(&self) -> usize {
-        self.inner.n_agents
-    }
-
-    fn obs_shape(&self) -> ObsShape {
-        self.inner.obs_shape()
-    }
-
-    fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let instance = self.inner.pool.sample(self.inner.n_agents, &mut rng);
-        self.inner.start(&instance, obs);
-    }
-
-    fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
-        self.inner.step(actions, obs)
-    }
-}
-
-/// Formation training on the training pool: reach the target formation anywhere (reward,
-/// clipping and leader order of [`Task::Formation`]).
-#[derive(Debug, Clone)]
-pub struct FormationEnv {
-    inner: PoolEnv,
-}
-
-impl FormationEnv {
-    /// Generates the pool of `pool` once; episodes have `n_agents` agents and the field of
-    /// view and step limit of `env` (its task is replaced by formation).
-    ///
-    /// # Panics
-    /// If `n_agents` is 0 or the pool has no maps.
-    pub fn new(
-        pool: &PoolConfig,
-        env: EnvConfig,
-        n_agents: usize,
-    ) -> Result<FormationEnv, EnvError> {
-        Ok(FormationEnv { inner: PoolEnv::new(Task::Formation, pool, env, n_agents)? })
-    }
-
-    /// The simulator (positions, goals, time of the running episode).
-    pub fn env(&self) -> &Env {
-        &self.inner.env
-    }
-}
-
-impl MarlEnv for FormationEnv {
-    fn n_agents(&self) -> usize {
-        self.inner.n_agents
-    }
-
-    fn obs_shape(&self) -> ObsShape {
-        self.inner.obs_shape()
-    }
-
-    /// # Panics
-    /// If no placement comes out on [`FORMATION_MAP_TRIES`] drawn maps (too many agents for
-    /// the pool's maps).
-    fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let n_agents = self.inner.n_agents;
-        let instance = (0..FORMATION_MAP_TRIES)
-            .find_map(|_| self.inner.pool.sample_formation(n_agents, &mut rng).ok())
-            .unwrap_or_else(|| panic!("no formation placement of {n_agents} agents"));
-        self.inner.start(&instance, obs);
-    }
-
-    fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
-        self.inner.step(actions, obs)
     }
 }

@@ -3,7 +3,7 @@
 //! - [`net`]: the recurrent Q-network shared by all agents (encoder, LSTM, head with the action
 //!   message after the LSTM);
 //! - [`env`](mod@env): the environment interface the learner trains on ([`MarlEnv`], flat buffers);
-//! - [`adapter`]: [`MarlEnv`] over `phalanx-env` ([`PathFindingEnv`], [`FormationEnv`]);
+//! - [`adapter`]: [`MarlEnv`] over `phalanx-env` ([`PoolEnv`], one type for every task);
 //! - [`replay`]: episode replay, padded episodes or windows with burn-in;
 //! - [`learner`]: VDN + double DQN with a target network, masked actions, ε-greedy acting;
 //! - [`train`]: the collect/update loop and its metric names;
@@ -31,7 +31,7 @@ pub mod net;
 pub mod replay;
 pub mod train;
 
-pub use adapter::{FormationEnv, PathFindingEnv};
+pub use adapter::PoolEnv;
 pub use checkpoint::CheckpointError;
 pub use env::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, Policy, UpdateStats};

@@ -1,10 +1,8 @@
 //! The adapters over `phalanx-env`: observations, masks and orders after reset and random
 //! masked steps, episodes ending by the step limit, and a short training run.
 
-use phalanx_env::{EnvConfig, PoolConfig};
-use phalanx_rl::{
-    FormationEnv, Learner, LearnerConfig, MarlEnv, ObsBuffers, PathFindingEnv, QNetConfig,
-};
+use phalanx_env::{EnvConfig, PoolConfig, Task};
+use phalanx_rl::{Learner, LearnerConfig, MarlEnv, ObsBuffers, PoolEnv, QNetConfig};
 use rand::SeedableRng;
 use rand::seq::IndexedRandom;
 use rand_chacha::ChaCha8Rng;
@@ -53,7 +51,7 @@ fn random_episode(env: &mut impl MarlEnv, seed: u64) -> (u32, bool) {
 
 #[test]
 fn path_finding_random_episode_is_truncated_at_the_limit() {
-    let mut env = PathFindingEnv::new(&small_pool(), env_config(), 3).unwrap();
+    let mut env = PoolEnv::new(Task::PathFinding, &small_pool(), env_config(), 3).unwrap();
     assert_eq!(env.obs_shape().grid_len(), 4 * 9 * 9);
     // The goal region is across a 32 × 32 map: random walks cannot reach it in 20 steps.
     assert_eq!(random_episode(&mut env, 1), (STEP_LIMIT, false));
@@ -62,7 +60,7 @@ fn path_finding_random_episode_is_truncated_at_the_limit() {
 
 #[test]
 fn path_finding_reset_is_deterministic() {
-    let mut env = PathFindingEnv::new(&small_pool(), env_config(), 3).unwrap();
+    let mut env = PoolEnv::new(Task::PathFinding, &small_pool(), env_config(), 3).unwrap();
     let mut a = ObsBuffers::new(3, env.obs_shape());
     let mut b = ObsBuffers::new(3, env.obs_shape());
     env.reset(7, &mut a);
@@ -73,7 +71,7 @@ fn path_finding_reset_is_deterministic() {
 
 #[test]
 fn formation_random_episode_ends_by_the_limit() {
-    let mut env = FormationEnv::new(&small_pool(), env_config(), 4).unwrap();
+    let mut env = PoolEnv::new(Task::Formation, &small_pool(), env_config(), 4).unwrap();
     for seed in 0..3 {
         let (steps, terminated) = random_episode(&mut env, seed);
         assert!(terminated || steps == STEP_LIMIT, "seed {seed}: ended early without success");
@@ -83,7 +81,7 @@ fn formation_random_episode_ends_by_the_limit() {
 #[test]
 fn learner_trains_on_path_finding() {
     let device = crate::train_device();
-    let mut env = PathFindingEnv::new(&small_pool(), env_config(), 3).unwrap();
+    let mut env = PoolEnv::new(Task::PathFinding, &small_pool(), env_config(), 3).unwrap();
     let config = LearnerConfig { learning_starts: 4, batch_size: 8, ..LearnerConfig::default() };
     let mut learner = Learner::new(QNetConfig::default(), config, 3, 5, &device);
     let mut n_returns = 0;
