@@ -179,5 +179,33 @@ pub fn random_grid(
     grid
 }
 
+/// One draw of a classic MAPF instance in the MovingAI "random" style (not the paper's
+/// formation instances): every cell blocked with probability `density`, then `n_agents`
+/// distinct starts and, independently, `n_agents` distinct goals drawn uniformly from the free
+/// cells. `None` when fewer cells than agents are free or a goal is unreachable; callers that
+/// need an instance draw again from the same stream.
+///
+/// # Panics
+/// If `density` is not in `0.0..=1.0`.
+pub fn random_mapf_instance(
+    width: u32,
+    height: u32,
+    density: f64,
+    n_agents: usize,
+    rng: &mut ChaCha8Rng,
+) -> Option<Instance> {
+    let grid = Grid::from_fn(width, height, |_| rng.random_bool(density));
+    let mut free: Vec<Cell> = grid.free_cells().collect();
+    if free.len() < n_agents {
+        return None;
+    }
+    let mut pool = free.clone();
+    let starts: Vec<Cell> =
+        (0..n_agents).map(|_| pool.swap_remove(rng.random_range(0..pool.len()))).collect();
+    let goals: Vec<Cell> =
+        (0..n_agents).map(|_| free.swap_remove(rng.random_range(0..free.len()))).collect();
+    Instance::new(grid, starts, goals).ok()
+}
+
 #[cfg(test)]
 mod tests;

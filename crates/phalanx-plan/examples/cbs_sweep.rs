@@ -13,9 +13,10 @@
 
 #![allow(clippy::print_stdout, clippy::print_stderr, reason = "a command-line report")]
 
-use phalanx_core::{Cell, Grid, Instance, PlanMetrics, validate};
+use phalanx_core::{Instance, PlanMetrics, validate};
+use phalanx_gen::random_mapf_instance;
 use phalanx_plan::{Budget, PlanReport, cbs, ecbs};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 fn list<T: std::str::FromStr>(s: &str) -> Vec<T> {
@@ -27,14 +28,7 @@ fn list<T: std::str::FromStr>(s: &str) -> Vec<T> {
 fn random_obstacles(size: u32, density: f64, n_agents: usize, seed: u64) -> Instance {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     loop {
-        let grid = Grid::from_fn(size, size, |_| rng.random_bool(density));
-        let mut free: Vec<Cell> = grid.free_cells().collect();
-        let mut pool = free.clone();
-        let starts: Vec<Cell> =
-            (0..n_agents).map(|_| pool.swap_remove(rng.random_range(0..pool.len()))).collect();
-        let goals: Vec<Cell> =
-            (0..n_agents).map(|_| free.swap_remove(rng.random_range(0..free.len()))).collect();
-        if let Ok(inst) = Instance::new(grid, starts, goals) {
+        if let Some(inst) = random_mapf_instance(size, size, density, n_agents, &mut rng) {
             return inst;
         }
     }

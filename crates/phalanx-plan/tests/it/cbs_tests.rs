@@ -1,6 +1,7 @@
 //! CBS, ECBS and prioritised space-time A* against the validator and the brute force.
 
 use phalanx_core::{Cell, Grid, Instance, PlanMetrics, validate};
+use phalanx_gen::random_mapf_instance;
 use phalanx_plan::{Budget, PlanFailure, astar, cbs, ecbs};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -219,14 +220,9 @@ fn cbs_open_grid_crossings_match_brute_force() {
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     for round in 0..24 {
         let (side, n_agents) = if round % 3 == 0 { (6, 3) } else { (8, 2) };
-        let grid = Grid::from_fn(side, side, |_| rng.random_bool(0.05));
-        let mut free: Vec<Cell> = grid.free_cells().collect();
-        let mut pool = free.clone();
-        let starts: Vec<Cell> =
-            (0..n_agents).map(|_| pool.swap_remove(rng.random_range(0..pool.len()))).collect();
-        let goals: Vec<Cell> =
-            (0..n_agents).map(|_| free.swap_remove(rng.random_range(0..free.len()))).collect();
-        let Ok(inst) = Instance::new(grid, starts, goals) else { continue };
+        let Some(inst) = random_mapf_instance(side, side, 0.05, n_agents, &mut rng) else {
+            continue;
+        };
         let optimum = optimal_soc(&inst).expect("open grids are solvable");
         for config in all_configs() {
             assert_eq!(cbs_soc(&inst, &config), Ok(optimum), "{config:?} on {inst:?}");
