@@ -34,6 +34,38 @@ fn random_obstacles(size: u32, density: f64, n_agents: usize, seed: u64) -> Inst
     }
 }
 
+/// The CBS variant named on the command line.
+fn cbs_config(name: &str) -> cbs::CbsConfig {
+    let full = cbs::CbsConfig::default();
+    match name {
+        "cbs" => full,
+        "plain-cbs" => cbs::CbsConfig::plain(),
+        "cbs-no-cat" => cbs::CbsConfig { conflict_avoidance: false, ..full },
+        "cbs-no-cat-no-pc" => cbs::CbsConfig {
+            conflict_avoidance: false,
+            prioritize_conflicts: false,
+            cg_heuristic: false,
+            ..full
+        },
+        "cbs-no-cat-no-rect" => {
+            cbs::CbsConfig { conflict_avoidance: false, rectangle_reasoning: false, ..full }
+        }
+        custom if custom.starts_with("cbs:") => {
+            // `cbs:pc,bp,rect,target,cg,cat`: exactly the listed improvements.
+            let on: Vec<&str> = custom[4..].split(',').collect();
+            cbs::CbsConfig {
+                prioritize_conflicts: on.contains(&"pc"),
+                bypass: on.contains(&"bp"),
+                rectangle_reasoning: on.contains(&"rect"),
+                target_reasoning: on.contains(&"target"),
+                cg_heuristic: on.contains(&"cg"),
+                conflict_avoidance: on.contains(&"cat"),
+            }
+        }
+        other => panic!("unknown planner {other}"),
+    }
+}
+
 fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -85,58 +117,8 @@ fn main() {
                     };
                     let budget = Budget::seconds(time_limit);
                     let report: PlanReport = match planner.as_str() {
-                        "cbs" => cbs::solve(&inst, &cbs::CbsConfig::default(), &budget),
-                        "plain-cbs" => cbs::solve(
-                            &inst,
-                            &cbs::CbsConfig {
-                                prioritize_conflicts: false,
-                                bypass: false,
-                                rectangle_reasoning: false,
-                                target_reasoning: false,
-                                cg_heuristic: false,
-                                conflict_avoidance: false,
-                            },
-                            &budget,
-                        ),
-                        "cbs-no-cat" => cbs::solve(
-                            &inst,
-                            &cbs::CbsConfig { conflict_avoidance: false, ..Default::default() },
-                            &budget,
-                        ),
-                        "cbs-no-cat-no-pc" => cbs::solve(
-                            &inst,
-                            &cbs::CbsConfig {
-                                conflict_avoidance: false,
-                                prioritize_conflicts: false,
-                                cg_heuristic: false,
-                                ..Default::default()
-                            },
-                            &budget,
-                        ),
-                        "cbs-no-cat-no-rect" => cbs::solve(
-                            &inst,
-                            &cbs::CbsConfig {
-                                conflict_avoidance: false,
-                                rectangle_reasoning: false,
-                                ..Default::default()
-                            },
-                            &budget,
-                        ),
                         "ecbs" => ecbs::solve(&inst, &ecbs::EcbsConfig::default(), &budget),
-                        custom if custom.starts_with("cbs:") => {
-                            // `cbs:pc,bp,rect,target,cg,cat`: exactly the listed improvements.
-                            let on: Vec<&str> = custom[4..].split(',').collect();
-                            let config = cbs::CbsConfig {
-                                prioritize_conflicts: on.contains(&"pc"),
-                                bypass: on.contains(&"bp"),
-                                rectangle_reasoning: on.contains(&"rect"),
-                                target_reasoning: on.contains(&"target"),
-                                cg_heuristic: on.contains(&"cg"),
-                                conflict_avoidance: on.contains(&"cat"),
-                            };
-                            cbs::solve(&inst, &config, &budget)
-                        }
-                        other => panic!("unknown planner {other}"),
+                        name => cbs::solve(&inst, &cbs_config(name), &budget),
                     };
                     let s = report.stats;
                     all_times.push(s.runtime_s);

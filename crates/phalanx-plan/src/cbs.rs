@@ -79,6 +79,20 @@ impl Default for CbsConfig {
     }
 }
 
+impl CbsConfig {
+    /// Plain CBS (Sharon et al. 2015): every improvement off, for ablations.
+    pub fn plain() -> CbsConfig {
+        CbsConfig {
+            prioritize_conflicts: false,
+            bypass: false,
+            rectangle_reasoning: false,
+            target_reasoning: false,
+            cg_heuristic: false,
+            conflict_avoidance: false,
+        }
+    }
+}
+
 /// CBS, optimal for the sum of costs (each agent's arrival time at its goal for good).
 /// Nodes counted against the budget: high-level (constraint-tree) nodes expanded.
 pub fn solve(instance: &Instance, config: &CbsConfig, budget: &Budget) -> PlanReport {

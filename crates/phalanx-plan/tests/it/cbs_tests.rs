@@ -30,14 +30,7 @@ fn cbs_soc_within(
 
 fn all_configs() -> Vec<cbs::CbsConfig> {
     let full = cbs::CbsConfig::default();
-    let plain = cbs::CbsConfig {
-        prioritize_conflicts: false,
-        bypass: false,
-        rectangle_reasoning: false,
-        target_reasoning: false,
-        cg_heuristic: false,
-        conflict_avoidance: false,
-    };
+    let plain = cbs::CbsConfig::plain();
     vec![
         full.clone(),
         plain,
