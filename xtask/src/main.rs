@@ -97,54 +97,18 @@ fn demo() -> anyhow::Result<()> {
 }
 
 fn demo_steps(instance: &Path, out: &Path) -> Vec<Vec<String>> {
-    let s = |p: &Path| p.display().to_string();
-    let mut steps = vec![
-        vec![
-            "gen",
-            "--size",
-            "32",
-            "--density",
-            "0.15",
-            "--agents",
-            "3",
-            "--seed",
-            "1",
-            "-o",
-            &s(instance),
-        ],
-        vec!["info", &s(instance)],
-    ]
-    .into_iter()
-    .map(|v| v.into_iter().map(String::from).collect::<Vec<_>>())
-    .collect::<Vec<_>>();
-    let has = |sub: &str| {
-        xtask::workspace_root().join("crates/phalanx-cli/src").join(format!("{sub}.rs")).exists()
-    };
-    if has("solve") {
-        for planner in ["cbs", "swarm"] {
-            let plan = out.join(format!("plan-{planner}.yaml"));
-            steps.push(vec![
-                "solve".into(),
-                s(instance),
-                "--planner".into(),
-                planner.into(),
-                "-o".into(),
-                s(&plan),
-            ]);
-            steps.push(vec!["validate".into(), s(instance), s(&plan)]);
-        }
-    }
-    if has("sim") {
-        steps.push(vec!["sim".into(), s(instance), "--policy".into(), "greedy".into()]);
-        if has("solve") {
-            let plan = out.join("plan-swarm.yaml");
-            steps.push(vec![
-                "sim".into(),
-                s(instance),
-                "--policy".into(),
-                format!("plan:{}", s(&plan)),
-            ]);
-        }
-    }
-    steps
+    let inst = instance.display().to_string();
+    let plan = |planner: &str| out.join(format!("plan-{planner}.yaml")).display().to_string();
+    let (cbs, swarm) = (plan("cbs"), plan("swarm"));
+    let steps: [&[&str]; 8] = [
+        &["gen", "--size", "32", "--density", "0.15", "--agents", "3", "--seed", "1", "-o", &inst],
+        &["info", &inst],
+        &["solve", &inst, "--planner", "cbs", "-o", &cbs],
+        &["validate", &inst, &cbs],
+        &["solve", &inst, "--planner", "swarm", "-o", &swarm],
+        &["validate", &inst, &swarm],
+        &["sim", &inst, "--policy", "greedy"],
+        &["sim", &inst, "--policy", &format!("plan:{swarm}")],
+    ];
+    steps.iter().map(|args| args.iter().map(|&a| a.to_string()).collect()).collect()
 }
