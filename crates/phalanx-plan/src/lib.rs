@@ -3,10 +3,11 @@
 //!
 //! - [`astar`], space-time A* (the low level of CBS/ECBS) and prioritised planning;
 //! - [`cbs`], Conflict-Based Search, optimal for the sum of costs, with the ICBS improvements,
-//!   rectangle (symmetry) reasoning and the WDG heuristic;
+//!   the CG heuristic, target and rectangle (symmetry) reasoning and a conflict-avoidance table;
 //! - [`ecbs`], bounded-suboptimal Enhanced CBS (focal search);
 //! - [`joint_astar`], joint-state A*;
-//! - [`swarm`], SWARM-MAPF.
+//! - [`swarm`], SWARM-MAPF-R, a reconstruction of SWARM-MAPF;
+//! - [`planner`], one closed [`PlannerChoice`] over all of them and [`run_planner`].
 //!
 //! Planners never panic on an unsolvable instance, a timeout or a node limit: those are
 //! [`PlanFailure`] outcomes, and [`SearchStats`] always come back.
@@ -34,25 +35,3 @@ pub mod swarm;
 
 pub use budget::{Budget, BudgetClock, PlanFailure, PlanReport, SearchStats};
 pub use planner::{PlannerChoice, SolveSummary, run_planner};
-
-use phalanx_core::Instance;
-
-/// A planner and its settings (closed, config-driven).
-#[derive(Debug, Clone, PartialEq)]
-pub enum PlannerSpec {
-    /// Prioritised space-time A*.
-    SpaceTimeAStar(astar::AStarConfig),
-    /// Conflict-Based Search (optimal).
-    Cbs(cbs::CbsConfig),
-    /// Enhanced CBS (bounded suboptimal).
-    Ecbs(ecbs::EcbsConfig),
-}
-
-/// Runs the planner `spec` names.
-pub fn solve(instance: &Instance, spec: &PlannerSpec, budget: &Budget) -> PlanReport {
-    match spec {
-        PlannerSpec::SpaceTimeAStar(config) => astar::solve(instance, config, budget),
-        PlannerSpec::Cbs(config) => cbs::solve(instance, config, budget),
-        PlannerSpec::Ecbs(config) => ecbs::solve(instance, config, budget),
-    }
-}

@@ -10,7 +10,7 @@ use crate::swarm::{self, SwarmConfig};
 use crate::{Budget, PlanFailure, PlanReport};
 use crate::{astar, cbs, ecbs};
 
-/// A planner with its settings: the crate's [`crate::PlannerSpec`] plus the formation planners.
+/// A planner with its settings (closed, config-driven).
 #[derive(Debug, Clone)]
 pub enum PlannerChoice {
     /// Prioritised space-time A*.
