@@ -108,7 +108,8 @@ impl Instance {
             return Err(InstanceError::TooManyAgents(starts.len()));
         }
         for (what, cells) in [("start", &starts), ("goal", &goals)] {
-            let mut seen = cell_set::CellMap::new(&grid);
+            // Ids seen so far with their agent, sorted by id (no hashing: deterministic).
+            let mut seen: Vec<(u32, usize)> = Vec::with_capacity(cells.len());
             for (agent, &cell) in cells.iter().enumerate() {
                 if !grid.in_bounds(cell) {
                     let (width, height) = (grid.width(), grid.height());
@@ -117,8 +118,13 @@ impl Instance {
                 if grid.is_blocked(cell) {
                     return Err(InstanceError::Blocked { agent, what, cell });
                 }
-                if let Some(first) = seen.insert(&grid, cell, agent) {
-                    return Err(InstanceError::Duplicate { agent, first, what, cell });
+                let id = grid.id(cell).0;
+                match seen.binary_search_by_key(&id, |&(seen_id, _)| seen_id) {
+                    Ok(pos) => {
+                        let first = seen[pos].1;
+                        return Err(InstanceError::Duplicate { agent, first, what, cell });
+                    }
+                    Err(pos) => seen.insert(pos, (id, agent)),
                 }
             }
         }
@@ -194,33 +200,6 @@ fn components(grid: &Grid, goals: &[Cell]) -> Vec<u32> {
         }
     }
     label
-}
-
-/// A sparse cell → agent map for duplicate checks without hashing.
-mod cell_set {
-    use crate::{Cell, Grid};
-
-    pub(super) struct CellMap {
-        sorted: Vec<(u32, usize)>,
-    }
-
-    impl CellMap {
-        pub(super) fn new(_grid: &Grid) -> CellMap {
-            CellMap { sorted: Vec::new() }
-        }
-
-        /// Inserts `cell → agent`; returns the agent already there, if any.
-        pub(super) fn insert(&mut self, grid: &Grid, cell: Cell, agent: usize) -> Option<usize> {
-            let id = grid.id(cell).0;
-            match self.sorted.binary_search_by_key(&id, |&(c, _)| c) {
-                Ok(pos) => Some(self.sorted[pos].1),
-                Err(pos) => {
-                    self.sorted.insert(pos, (id, agent));
-                    None
-                }
-            }
-        }
-    }
 }
 
 #[cfg(test)]
