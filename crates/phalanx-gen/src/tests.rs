@@ -66,17 +66,33 @@ proptest! {
     }
 }
 
+/// The longest horizontal or vertical run of blocked cells.
+fn longest_run(grid: &phalanx_core::Grid) -> u32 {
+    let side = grid.width() as i32;
+    let mut best = 0;
+    for a in 0..side {
+        let (mut row, mut col) = (0, 0);
+        for b in 0..side {
+            row = if grid.is_blocked(Cell::new(b, a)) { row + 1 } else { 0 };
+            col = if grid.is_blocked(Cell::new(a, b)) { col + 1 } else { 0 };
+            best = best.max(row).max(col);
+        }
+    }
+    best
+}
+
 #[test]
 fn walls_are_short_straight_segments() {
-    // With density well below percolation, every 4-connected blocked component of a map made
-    // with fov 3 (walls of length 1) is a single cell or touches others only by chance; with
-    // fov 9 no row holds a horizontal run that could only come from one segment longer than 4.
+    // On a sparse map segments rarely touch, so the longest straight run shows the wall
+    // length: `max_wall` cells; with `max_wall = 1` two single cells touch at most.
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let grid = random_grid(64, 64, 0.02, 4, &[], &mut rng);
     assert_eq!(grid.n_blocked(), 82);
+    assert_eq!(longest_run(&grid), 4);
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let single = random_grid(64, 64, 0.02, 1, &[], &mut rng);
     assert_eq!(single.n_blocked(), 82);
+    assert_eq!(longest_run(&single), 2);
 }
 
 #[test]
