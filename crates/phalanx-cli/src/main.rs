@@ -7,9 +7,12 @@
 //! Exit codes: 0 success, 1 an invalid plan (`validate`), 2 bad input (unreadable or
 //! malformed files, bad flags); see [`util`].
 
+mod eval;
 #[path = "gen.rs"]
 mod generate;
 mod info;
+mod models;
+mod plot;
 mod sim;
 mod solve;
 mod train;
@@ -44,6 +47,8 @@ enum Command {
     Solve(solve::SolveCmd),
     /// Train a path-finding or formation policy (VDN + double DQN) on the training pool.
     Train(train::TrainCmd),
+    /// Evaluate a trained policy on fresh maps (success rate, makespan, collisions, L_f).
+    Eval(eval::EvalCmd),
 }
 
 fn main() -> ExitCode {
@@ -66,6 +71,7 @@ fn main() -> ExitCode {
         Command::Sim(cmd) => sim::run(cmd),
         Command::Solve(cmd) => solve::run(cmd),
         Command::Train(cmd) => train::run(cmd),
+        Command::Eval(cmd) => eval::run(cmd),
     };
     match res {
         Ok(code) => code,

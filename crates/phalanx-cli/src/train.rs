@@ -18,10 +18,13 @@ use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use phalanx_env::{EnvConfig, PoolConfig, Task};
-use phalanx_rl::{Learner, LearnerConfig, MarlEnv, PoolEnv, QNetConfig, metrics};
+use phalanx_rl::{Collector, Learner, LearnerConfig, PoolEnv, QNetConfig, Shaping, metrics};
 use serde::{Deserialize, Serialize};
 
-use crate::util;
+use crate::{plot, util};
+
+/// The training-curve plot written beside the metrics.
+const CURVES: &str = "curves.svg";
 
 /// Episodes in the progress bar's recent success rate.
 const SUCCESS_WINDOW: usize = 100;
@@ -34,6 +37,24 @@ pub(crate) enum TaskName {
     PathFinding,
     /// Formation: reach a random target formation from a random placement.
     Formation,
+}
+
+impl TaskName {
+    /// The name on the command line and under `models/`.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            TaskName::PathFinding => "pathfinding",
+            TaskName::Formation => "formation",
+        }
+    }
+
+    /// The environment's task.
+    pub(crate) fn task(self) -> Task {
+        match self {
+            TaskName::PathFinding => Task::PathFinding,
+            TaskName::Formation => Task::Formation,
+        }
+    }
 }
 
 /// Trains a path-finding or formation policy.
@@ -61,13 +82,16 @@ pub(crate) struct TrainCmd {
     steps: Option<u64>,
 }
 
-/// Settings of a training run. Defaults: 3 agents, 200 000 steps, a checkpoint every 1000
-/// updates, the default network and learner, the paper's environment and pool.
+/// Settings of a training run. Defaults: teams of 3, 16 environments in lockstep, 200 000
+/// steps, a checkpoint every 1000 updates, the default network and learner, the paper's
+/// environment and pool.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 struct TrainConfig {
-    /// Agents per episode.
-    n_agents: usize,
+    /// Team sizes trained (one shared network; environments take the sizes in turn).
+    agent_counts: Vec<usize>,
+    /// Environments played in lockstep (batched inference).
+    n_envs: usize,
     /// Total environment steps.
     steps: u64,
     /// Gradient updates between checkpoints.
@@ -80,18 +104,24 @@ struct TrainConfig {
     env: EnvConfig,
     /// The training pool.
     pool: PoolConfig,
+    /// Weight of potential-based reward shaping towards the goals (a training aid that keeps
+    /// the optimal policies; see `phalanx_rl::Shaping`); default 1 for formation, 0 for
+    /// path finding (whose Table I reward already pays each step towards the goal).
+    shaping: Option<f32>,
 }
 
 impl Default for TrainConfig {
     fn default() -> Self {
         Self {
-            n_agents: 3,
+            agent_counts: vec![3],
+            n_envs: 16,
             steps: 200_000,
             checkpoint_every: 1000,
             net: QNetConfig::default(),
             learner: LearnerConfig::default(),
             env: EnvConfig::default(),
             pool: PoolConfig::default(),
+            shaping: None,
         }
     }
 }
@@ -114,33 +144,52 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         Learner::load(&checkpoint, &device).context("resuming")?
     } else {
         let max = config.net.n_agents_max;
-        anyhow::ensure!(
-            (1..=max).contains(&config.n_agents),
-            "n_agents {} must be between 1 and the network's n_agents_max {max}",
-            config.n_agents
-        );
-        Learner::new(config.net.clone(), config.learner.clone(), config.n_agents, cmd.seed, &device)
+        anyhow::ensure!(!config.agent_counts.is_empty(), "agent_counts must not be empty");
+        for &n in &config.agent_counts {
+            anyhow::ensure!(
+                (1..=max).contains(&n),
+                "agent count {n} must be between 1 and the network's n_agents_max {max}"
+            );
+        }
+        Learner::new(
+            config.net.clone(),
+            config.learner.clone(),
+            &config.agent_counts,
+            cmd.seed,
+            &device,
+        )
     };
-    if learner.n_agents() != config.n_agents {
+    if learner.agent_counts() != config.agent_counts {
         util::warn(&format!(
-            "the checkpoint trains {} agents; config n_agents {} ignored",
-            learner.n_agents(),
-            config.n_agents
+            "the checkpoint trains teams of {:?}; config agent_counts {:?} ignored",
+            learner.agent_counts(),
+            config.agent_counts
         ));
-        config.n_agents = learner.n_agents();
+        config.agent_counts = learner.agent_counts().to_vec();
     }
+    anyhow::ensure!(config.n_envs > 0, "n_envs must be positive");
     fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let json = serde_json::to_string_pretty(&config).expect("the config serialises");
     fs::write(&saved_config, json + "\n")
         .with_context(|| format!("writing {}", saved_config.display()))?;
 
-    let task = match cmd.task {
-        TaskName::PathFinding => Task::PathFinding,
-        TaskName::Formation => Task::Formation,
-    };
-    let env = PoolEnv::new(task, &config.pool, config.env.clone(), config.n_agents)
+    let task = cmd.task.task();
+    let weight = config.shaping.unwrap_or(match task {
+        Task::Formation => 1.0,
+        Task::PathFinding | Task::Meta => 0.0,
+    });
+    let shaping = (weight != 0.0).then_some(Shaping { weight, gamma: learner.config().gamma });
+    let first = PoolEnv::new(task, &config.pool, config.env.clone(), config.agent_counts[0])
+        .with_context(|| format!("building the {:?} environment", cmd.task))?
+        .with_shaping(shaping);
+    let counts = &config.agent_counts;
+    let envs = (0..config.n_envs)
+        .map(|e| first.with_agents(counts[e % counts.len()]))
+        .collect::<Result<Vec<_>, _>>()
         .with_context(|| format!("building the {:?} environment", cmd.task))?;
-    train(env, learner, &config, dir, cmd.resume)
+    let step_limit = config.env.step_limit.unwrap_or(3 * config.pool.size) as usize;
+    let collector = Collector::new(envs, step_limit);
+    train(collector, learner, &config, dir, cmd.resume)
 }
 
 fn read_config(path: &Path) -> anyhow::Result<TrainConfig> {
@@ -154,7 +203,7 @@ fn read_config(path: &Path) -> anyhow::Result<TrainConfig> {
 /// (about `checkpoint_every` updates once learning has started); a checkpoint is written after
 /// each chunk that crossed a multiple of `checkpoint_every` updates.
 fn train(
-    mut env: impl MarlEnv,
+    mut collector: Collector<PoolEnv>,
     mut learner: Learner,
     config: &TrainConfig,
     dir: &Path,
@@ -170,7 +219,6 @@ fn train(
         .open(&metrics_path)
         .with_context(|| format!("opening {}", metrics_path.display()))?;
 
-    let step_limit = config.env.step_limit.unwrap_or(3 * config.pool.size) as usize;
     let start = learner.counters();
     let bar = ProgressBar::new(config.steps);
     let style = ProgressStyle::with_template(
@@ -192,6 +240,8 @@ fn train(
         bar: bar.clone(),
         total: config.steps,
         episodes: start.episodes,
+        updates: 0,
+        started: Instant::now(),
     };
     let started = Instant::now();
     let every = config.checkpoint_every.max(1);
@@ -199,7 +249,7 @@ fn train(
     let mut last_saved = start.updates / every;
     while learner.counters().env_steps < config.steps {
         let todo = (config.steps - learner.counters().env_steps).min(chunk);
-        learner.train(&mut env, todo, step_limit, &mut sink);
+        learner.train(&mut collector, todo, &mut sink);
         if let Some(err) = sink.err.take() {
             return Err(err).with_context(|| format!("writing {}", metrics_path.display()));
         }
@@ -208,11 +258,13 @@ fn train(
             last_saved = updates / every;
             sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
             learner.save(&checkpoint)?;
+            plot_curves(dir);
         }
     }
     bar.finish_and_clear();
     sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
     learner.save(&checkpoint)?;
+    plot_curves(dir);
 
     let counters = learner.counters();
     let secs = started.elapsed().as_secs_f64().max(1e-9);
@@ -224,8 +276,23 @@ fn train(
         ("steps/s", format!("{sps:.1}")),
         ("success", format!("{:.2} (last {SUCCESS_WINDOW} episodes)", sink.success_rate())),
         ("checkpoint", checkpoint.display().to_string()),
+        ("curves", dir.join(CURVES).display().to_string()),
     ]))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Redraws `DIR/curves.svg` from `DIR/metrics.jsonl`; a failure is reported, not fatal (the
+/// checkpoint and the metrics are what a run must not lose).
+fn plot_curves(dir: &Path) {
+    let metrics = dir.join("metrics.jsonl");
+    match plot::training_curves(&metrics, &dir.join(CURVES)) {
+        Ok(None) => {}
+        Ok(Some(line)) => util::warn(&format!(
+            "warning: {}:{line}: skipped lines that are not metrics in the curves",
+            metrics.display()
+        )),
+        Err(err) => util::warn(&format!("warning: no training curves: {err:#}")),
+    }
 }
 
 /// Writes metrics as JSON lines and drives the progress bar: steps and episodes, ε and the
@@ -238,6 +305,9 @@ struct Sink {
     bar: ProgressBar,
     total: u64,
     episodes: u64,
+    /// Updates in this process, and when it started (for updates/s).
+    updates: u64,
+    started: Instant,
 }
 
 impl Sink {
@@ -256,11 +326,13 @@ impl phalanx_rl::MetricSink for Sink {
                 }
                 self.recent.push_back(value > 0.5);
             }
+            metrics::TD_LOSS => self.updates += 1,
             metrics::EPSILON => {
                 self.episodes += 1;
+                let ups = self.updates as f64 / self.started.elapsed().as_secs_f64().max(1e-9);
                 self.bar.set_position(env_step.min(self.total));
                 self.bar.set_message(format!(
-                    "| {} episodes, eps {value:.3}, success {:.2}",
+                    "| {} episodes, {ups:.1} updates/s, eps {value:.3}, success {:.2}",
                     self.episodes,
                     self.success_rate()
                 ));

@@ -49,7 +49,7 @@ fn update(c: &mut Criterion) {
             sequence: SequenceMode::Episodes,
             ..LearnerConfig::default()
         };
-        let mut learner = Learner::new(config.clone(), learner_config, AGENTS, 1, &device);
+        let mut learner = Learner::new(config.clone(), learner_config, &[AGENTS], 1, &device);
         let mut rng = ChaCha8Rng::seed_from_u64(2);
         let mut replay = Replay::new(64, AGENTS, obs_shape(&config));
         for _ in 0..64 {

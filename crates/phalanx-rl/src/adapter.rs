@@ -8,7 +8,7 @@
 //! Observations are written into [`ObsBuffers`]: the four grid channels, the goal vector, the
 //! mask of the task's clipping and the leader order of the task's rule.
 
-use phalanx_core::Action;
+use phalanx_core::{Action, Instance};
 use phalanx_env::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use phalanx_env::{Clip, Env, EnvConfig, EnvError, LeaderRule, PoolConfig, Task, TrainPool};
 use rand::SeedableRng;
@@ -20,17 +20,133 @@ use crate::env::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 /// [`phalanx_env::MAX_PLACEMENT_ATTEMPTS`] placements on its map).
 const FORMATION_MAP_TRIES: usize = 16;
 
-/// A training environment on the pool: the simulator with the task's rewards, clipping and
-/// leader rule, and the instance draw of the task.
+/// The simulator with a task's rewards, clipping and leader rule, writing [`ObsBuffers`]:
+/// an episode starts from a given instance ([`TaskEnv::reset_to`]). [`PoolEnv`] adds the
+/// training pool's instance draw; evaluation resets it to fresh instances.
 #[derive(Debug, Clone)]
-pub struct PoolEnv {
+pub struct TaskEnv {
     env: Env,
-    pool: TrainPool,
     task: Task,
     n_agents: usize,
     clip: Clip,
     rule: LeaderRule,
     actions: Vec<Action>,
+}
+
+impl TaskEnv {
+    /// An environment of `task` for `n_agents` agents with the field of view and step limit
+    /// of `env` (its task is replaced by `task`).
+    ///
+    /// # Panics
+    /// If `n_agents` is 0.
+    pub fn new(task: Task, env: EnvConfig, n_agents: usize) -> Result<TaskEnv, EnvError> {
+        assert!(n_agents > 0, "an environment needs agents");
+        Ok(TaskEnv {
+            env: Env::new(EnvConfig { task, ..env })?,
+            task,
+            n_agents,
+            clip: task.clip(),
+            rule: task.leader_rule(),
+            actions: vec![Action::Wait; n_agents],
+        })
+    }
+
+    /// The simulator (positions, goals, time of the running episode).
+    pub fn env(&self) -> &Env {
+        &self.env
+    }
+
+    /// The task.
+    pub fn task(&self) -> Task {
+        self.task
+    }
+
+    /// Start an episode on `instance` and write its first observation.
+    ///
+    /// # Errors
+    /// If the instance has another agent count or the simulator refuses it.
+    pub fn reset_to(&mut self, instance: &Instance, obs: &mut ObsBuffers) -> Result<(), EnvError> {
+        if instance.n_agents() != self.n_agents {
+            return Err(EnvError::AgentCount {
+                expected: self.n_agents,
+                found: instance.n_agents(),
+            });
+        }
+        self.env.reset(instance)?;
+        self.observe(obs);
+        Ok(())
+    }
+
+    /// Agents per episode.
+    pub fn n_agents(&self) -> usize {
+        self.n_agents
+    }
+
+    /// Sizes of one agent's observation.
+    pub fn obs_shape(&self) -> ObsShape {
+        ObsShape {
+            channels: CHANNELS,
+            fov: self.env.config().fov as usize,
+            env_vec: VECTOR_LEN,
+            n_actions: N_ACTIONS,
+        }
+    }
+
+    /// Writes every agent's channels, goal vector and mask, then the leader order.
+    fn observe(&mut self, obs: &mut ObsBuffers) {
+        let shape = obs.shape;
+        assert_eq!(obs.n_agents, self.n_agents, "buffers of another agent count");
+        assert_eq!(shape, self.obs_shape(), "buffers of another shape");
+        let grids = obs.grid.chunks_exact_mut(shape.grid_len());
+        let vectors = obs.vec.chunks_exact_mut(shape.env_vec);
+        let masks = obs.action_mask.chunks_exact_mut(shape.n_actions);
+        for (agent, ((grid, vector), mask)) in grids.zip(vectors).zip(masks).enumerate() {
+            self.env.write_grid(agent, grid);
+            self.env.write_vector(agent, vector);
+            self.env.write_mask(agent, self.clip, mask);
+        }
+        let order = self.env.begin_turns(self.rule);
+        obs.order.clear();
+        obs.order.extend(order.iter().map(|&agent| usize::from(agent)));
+    }
+
+    /// Apply the joint action and write the next observation.
+    pub fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
+        assert_eq!(actions.len(), self.n_agents, "one action per agent");
+        for (slot, &action) in self.actions.iter_mut().zip(actions) {
+            *slot = Action::from_index(usize::from(action)).expect("action index below 5");
+        }
+        let step = self.env.step(&self.actions);
+        let out = StepOut {
+            team_reward: step.team_reward,
+            terminated: step.terminated,
+            truncated: step.truncated,
+            collisions: step.info.n_cancelled,
+        };
+        self.observe(obs);
+        out
+    }
+}
+
+/// A training environment on the pool: a [`TaskEnv`] whose resets draw the task's instances
+/// from the training pool.
+#[derive(Debug, Clone)]
+pub struct PoolEnv {
+    inner: TaskEnv,
+    pool: TrainPool,
+    shaping: Option<Shaping>,
+}
+
+/// Potential-based reward shaping (Ng, Harada and Russell 1999), a training aid that leaves
+/// the optimal policies unchanged: each step adds `weight · (γ Φ(s') − Φ(s))` to the team
+/// reward, with `Φ(s) = −Σ_i d_i(s)` (the agents' BFS distances to their goals) and `Φ = 0`
+/// in a terminal state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shaping {
+    /// Scale of the shaping term.
+    pub weight: f32,
+    /// The learner's discount γ (the shaping must use the same one).
+    pub gamma: f32,
 }
 
 impl PoolEnv {
@@ -45,61 +161,46 @@ impl PoolEnv {
         env: EnvConfig,
         n_agents: usize,
     ) -> Result<PoolEnv, EnvError> {
-        assert!(n_agents > 0, "an environment needs agents");
-        let env = Env::new(EnvConfig { task, ..env })?;
+        let inner = TaskEnv::new(task, env, n_agents)?;
         let pool = TrainPool::new(pool)?;
         assert!(!pool.is_empty(), "the training pool has no maps");
-        Ok(PoolEnv {
-            env,
-            pool,
-            task,
-            n_agents,
-            clip: task.clip(),
-            rule: task.leader_rule(),
-            actions: vec![Action::Wait; n_agents],
-        })
+        Ok(PoolEnv { inner, pool, shaping: None })
+    }
+
+    /// Add potential-based reward shaping to the team reward (see [`Shaping`]).
+    pub fn with_shaping(mut self, shaping: Option<Shaping>) -> PoolEnv {
+        self.shaping = shaping;
+        self
+    }
+
+    /// `Φ(s) = −Σ_i d_i(s)` of the running episode.
+    fn potential(&self) -> f32 {
+        let env = self.inner.env();
+        -(0..self.inner.n_agents).map(|agent| env.cost_to_go(agent) as f32).sum::<f32>()
+    }
+
+    /// The same pool and task for teams of `n_agents` (the pool is shared, not regenerated).
+    ///
+    /// # Panics
+    /// If `n_agents` is 0.
+    pub fn with_agents(&self, n_agents: usize) -> Result<PoolEnv, EnvError> {
+        let inner = TaskEnv::new(self.inner.task, self.inner.env.config().clone(), n_agents)?;
+        Ok(PoolEnv { inner, pool: self.pool.clone(), shaping: self.shaping })
     }
 
     /// The simulator (positions, goals, time of the running episode).
     pub fn env(&self) -> &Env {
-        &self.env
-    }
-
-    fn shape(&self) -> ObsShape {
-        ObsShape {
-            channels: CHANNELS,
-            fov: self.env.config().fov as usize,
-            env_vec: VECTOR_LEN,
-            n_actions: N_ACTIONS,
-        }
-    }
-
-    /// Writes every agent's channels, goal vector and mask, then the leader order.
-    fn observe(&mut self, obs: &mut ObsBuffers) {
-        let shape = obs.shape;
-        assert_eq!(obs.n_agents, self.n_agents, "buffers of another agent count");
-        assert_eq!(shape, self.shape(), "buffers of another shape");
-        let grids = obs.grid.chunks_exact_mut(shape.grid_len());
-        let vectors = obs.vec.chunks_exact_mut(shape.env_vec);
-        let masks = obs.action_mask.chunks_exact_mut(shape.n_actions);
-        for (agent, ((grid, vector), mask)) in grids.zip(vectors).zip(masks).enumerate() {
-            self.env.write_grid(agent, grid);
-            self.env.write_vector(agent, vector);
-            self.env.write_mask(agent, self.clip, mask);
-        }
-        let order = self.env.begin_turns(self.rule);
-        obs.order.clear();
-        obs.order.extend(order.iter().map(|&agent| usize::from(agent)));
+        self.inner.env()
     }
 }
 
 impl MarlEnv for PoolEnv {
     fn n_agents(&self) -> usize {
-        self.n_agents
+        self.inner.n_agents
     }
 
     fn obs_shape(&self) -> ObsShape {
-        self.shape()
+        self.inner.obs_shape()
     }
 
     /// # Panics
@@ -107,29 +208,24 @@ impl MarlEnv for PoolEnv {
     /// maps (too many agents for the pool's maps).
     fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let n_agents = self.n_agents;
-        let instance = match self.task {
+        let n_agents = self.inner.n_agents;
+        let instance = match self.inner.task {
             Task::Formation => (0..FORMATION_MAP_TRIES)
                 .find_map(|_| self.pool.sample_formation(n_agents, &mut rng).ok())
                 .unwrap_or_else(|| panic!("no formation placement of {n_agents} agents")),
             Task::PathFinding | Task::Meta => self.pool.sample(n_agents, &mut rng),
         };
-        self.env.reset(&instance).expect("pool instances fit the environment");
-        self.observe(obs);
+        self.inner.reset_to(&instance, obs).expect("pool instances fit the environment");
     }
 
     fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
-        assert_eq!(actions.len(), self.n_agents, "one action per agent");
-        for (slot, &action) in self.actions.iter_mut().zip(actions) {
-            *slot = Action::from_index(usize::from(action)).expect("action index below 5");
-        }
-        let step = self.env.step(&self.actions);
-        let out = StepOut {
-            team_reward: step.team_reward,
-            terminated: step.terminated,
-            truncated: step.truncated,
+        let Some(Shaping { weight, gamma }) = self.shaping else {
+            return self.inner.step(actions, obs);
         };
-        self.observe(obs);
+        let before = self.potential();
+        let mut out = self.inner.step(actions, obs);
+        let after = if out.terminated { 0.0 } else { self.potential() };
+        out.team_reward += weight * (gamma * after - before);
         out
     }
 }

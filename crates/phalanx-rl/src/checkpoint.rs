@@ -5,6 +5,10 @@
 //! bytes: the JSON header ([`Header`]), the online network, the target network (both burnpack
 //! records from burn's `ModuleRecord`) and the optimiser record.
 //! The replay buffer is not saved: a resumed run refills it before its first update.
+//!
+//! A *policy file* ([`Learner::save_policy`], what `models/` ships) has the magic `PHXRLPL1`
+//! and two sections: the same JSON header and the online network. [`load_policy`] reads both
+//! kinds.
 
 use std::fs;
 use std::io::Write;
@@ -17,11 +21,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::learner::{Counters, Learner, LearnerConfig, Policy};
+use crate::learner::{Counters, Learner, LearnerConfig};
 use crate::net::{QNet, QNetConfig};
+use crate::policy::Policy;
 
 const MAGIC: &[u8; 8] = b"PHXRLCK1";
-const VERSION: u32 = 1;
+const POLICY_MAGIC: &[u8; 8] = b"PHXRLPL1";
+const VERSION: u32 = 2;
 
 /// Errors reading or writing a checkpoint.
 #[derive(Debug, thiserror::Error)]
@@ -79,8 +85,8 @@ pub struct Header {
     pub net_config: QNetConfig,
     /// Learner hyper-parameters.
     pub learner_config: LearnerConfig,
-    /// Agents trained.
-    pub n_agents: usize,
+    /// Team sizes trained, ascending.
+    pub agent_counts: Vec<usize>,
     /// Counters at save time.
     pub counters: Counters,
     /// The learner RNG: ChaCha8 seed, stream and word position (`[high, low]` 64-bit halves).
@@ -92,20 +98,23 @@ pub struct Header {
 }
 
 impl Learner {
-    /// Write the learner's state to `path` atomically.
-    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+    fn header(&self) -> Header {
         let word_pos = self.rng.get_word_pos();
-        let header = Header {
+        Header {
             version: VERSION,
             net_config: self.net_config.clone(),
             learner_config: self.config.clone(),
-            n_agents: self.n_agents,
+            agent_counts: self.agent_counts.clone(),
             counters: self.counters,
             rng_seed: self.rng.get_seed(),
             rng_stream: self.rng.get_stream(),
             rng_word_pos: [(word_pos >> 64) as u64, word_pos as u64],
-        };
-        let header = serde_json::to_vec_pretty(&header).expect("header serialises");
+        }
+    }
+
+    /// Write the learner's state to `path` atomically.
+    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        let header = serde_json::to_vec_pretty(&self.header()).expect("header serialises");
         let record_err = |section| {
             move |err: burn::store::RecordError| CheckpointError::Record {
                 path: path.to_path_buf(),
@@ -119,30 +128,44 @@ impl Learner {
             self.target.clone().into_record().into_bytes().map_err(record_err("target"))?;
         let optim = self.optim.into_bytes().map_err(record_err("optimizer"))?;
 
-        let mut buf = Vec::with_capacity(header.len() + online.len() * 4 + 64);
-        buf.extend_from_slice(MAGIC);
-        for section in [&header[..], &online[..], &target[..], &optim[..]] {
-            buf.extend_from_slice(&(section.len() as u64).to_le_bytes());
-            buf.extend_from_slice(section);
-        }
-        write_atomic(path, &buf)
+        write_atomic(path, &sections(MAGIC, &[&header, &online, &target, &optim]))
+    }
+
+    /// Write only what acting needs (the header and the online network) to `path`
+    /// atomically: a policy file for [`load_policy`], a quarter of a checkpoint's size.
+    pub fn save_policy(&self, path: &Path) -> Result<(), CheckpointError> {
+        let header = serde_json::to_vec_pretty(&self.header()).expect("header serialises");
+        let online = self
+            .online
+            .clone()
+            .into_record()
+            .into_bytes()
+            .map_err(|err| record_error(path, "online", err))?;
+        write_atomic(path, &sections(POLICY_MAGIC, &[&header, &online]))
     }
 
     /// Restore a learner saved by [`Learner::save`] onto `device` (with autodiff).
     pub fn load(path: &Path, device: &Device) -> Result<Self, CheckpointError> {
         let file = read_file(path)?;
+        let (Some(target), Some(optim)) = (file.target, file.optim) else {
+            return Err(CheckpointError::Malformed {
+                path: path.to_path_buf(),
+                reason: "a policy file cannot resume training (no target network or optimizer)"
+                    .into(),
+            });
+        };
         let mut learner = Learner::new(
             file.header.net_config.clone(),
             file.header.learner_config.clone(),
-            file.header.n_agents,
+            &file.header.agent_counts,
             0,
             device,
         );
         learner.online = apply(learner.online, &file.online, path, "online")?;
-        learner.target = apply(learner.target, &file.target, path, "target")?;
+        learner.target = apply(learner.target, &target, path, "target")?;
         learner.optim = learner
             .optim
-            .from_bytes(Bytes::from_bytes_vec(file.optim))
+            .from_bytes(Bytes::from_bytes_vec(optim))
             .map_err(|err| record_error(path, "optimizer", err))?;
         learner.counters = file.header.counters;
         let mut rng = ChaCha8Rng::from_seed(file.header.rng_seed);
@@ -154,8 +177,8 @@ impl Learner {
     }
 }
 
-/// Load only the acting policy (online network) of a checkpoint, checking that its network is
-/// `expected`; `device` should be a plain (non-autodiff) device.
+/// Load only the acting policy (online network) of a checkpoint or policy file, checking that
+/// its network is `expected`; `device` should be a plain (non-autodiff) device.
 pub fn load_policy(
     path: &Path,
     expected: &QNetConfig,
@@ -174,6 +197,13 @@ pub fn load_policy(
     Ok(Policy::new(net, expected.clone(), device))
 }
 
+/// Load the acting policy of a checkpoint or policy file with the network its header names,
+/// and the header; `device` should be a plain (non-autodiff) device.
+pub fn load_policy_any(path: &Path, device: &Device) -> Result<(Policy, Header), CheckpointError> {
+    let header = read_header(path)?;
+    Ok((load_policy(path, &header.net_config, device)?, header))
+}
+
 /// Read a checkpoint's header only.
 pub fn read_header(path: &Path) -> Result<Header, CheckpointError> {
     Ok(read_file(path)?.header)
@@ -182,8 +212,21 @@ pub fn read_header(path: &Path) -> Result<Header, CheckpointError> {
 struct File {
     header: Header,
     online: Vec<u8>,
-    target: Vec<u8>,
-    optim: Vec<u8>,
+    /// `None` in a policy file.
+    target: Option<Vec<u8>>,
+    /// `None` in a policy file.
+    optim: Option<Vec<u8>>,
+}
+
+/// `magic`, then each section as a little-endian `u64` length and its bytes.
+fn sections(magic: &[u8; 8], parts: &[&[u8]]) -> Vec<u8> {
+    let mut buf = Vec::with_capacity(parts.iter().map(|it| it.len() + 8).sum::<usize>() + 8);
+    buf.extend_from_slice(magic);
+    for part in parts {
+        buf.extend_from_slice(&(part.len() as u64).to_le_bytes());
+        buf.extend_from_slice(part);
+    }
+    buf
 }
 
 fn read_file(path: &Path) -> Result<File, CheckpointError> {
@@ -198,10 +241,16 @@ fn read_file(path: &Path) -> Result<File, CheckpointError> {
         path: path.to_path_buf(),
         reason: reason.into(),
     };
-    let rest = bytes.strip_prefix(MAGIC).ok_or_else(|| malformed("bad magic"))?;
-    let mut sections = Vec::with_capacity(4);
+    let (rest, n_sections) = if let Some(rest) = bytes.strip_prefix(MAGIC) {
+        (rest, 4)
+    } else if let Some(rest) = bytes.strip_prefix(POLICY_MAGIC) {
+        (rest, 2)
+    } else {
+        return Err(malformed("bad magic (neither a checkpoint nor a policy file)"));
+    };
+    let mut sections = Vec::with_capacity(n_sections);
     let mut rest = rest;
-    for _ in 0..4 {
+    for _ in 0..n_sections {
         let (len, tail) = rest.split_first_chunk::<8>().ok_or_else(|| malformed("truncated"))?;
         let len = usize::try_from(u64::from_le_bytes(*len)).map_err(|_| malformed("too large"))?;
         if tail.len() < len {
@@ -219,9 +268,10 @@ fn read_file(path: &Path) -> Result<File, CheckpointError> {
     if header.version != VERSION {
         return Err(malformed(&format!("version {} (expected {VERSION})", header.version)));
     }
-    let optim = sections.pop().expect("four sections");
-    let target = sections.pop().expect("four sections");
-    let online = sections.pop().expect("four sections");
+    let mut sections = sections.into_iter().skip(1);
+    let online = sections.next().expect("at least two sections");
+    let target = sections.next();
+    let optim = sections.next();
     Ok(File { header, online, target, optim })
 }
 

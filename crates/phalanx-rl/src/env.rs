@@ -90,6 +90,8 @@ pub struct StepOut {
     pub terminated: bool,
     /// The episode was cut by the step limit: the learner bootstraps from the last observation.
     pub truncated: bool,
+    /// Moves cancelled by collisions this step (information only).
+    pub collisions: u32,
 }
 
 /// A cooperative multi-agent environment with a team reward.

@@ -14,13 +14,14 @@
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Bool, Device, Int, Tensor, TensorData};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::env::{ObsBuffers, ObsShape};
-use crate::net::{QNet, QNetConfig, RecurrentState};
-use crate::replay::{Batch, Replay, SequenceMode};
+use crate::env::ObsShape;
+use crate::net::{QNet, QNetConfig};
+use crate::policy::Policy;
+use crate::replay::{Batch, Episode, Replay, SequenceMode};
 
 /// Q-value given to masked actions before a max or argmax ("−∞-like", finite to keep sums finite).
 pub const MASKED_Q: f32 = -1.0e9;
@@ -57,7 +58,8 @@ pub struct LearnerConfig {
     pub lr: f64,
     /// Sequences per update (paper: 32).
     pub batch_size: usize,
-    /// Replay capacity in episodes (default 5000, as EPyMARL).
+    /// Replay capacity in episodes (default 5000, as EPyMARL), split evenly between the
+    /// agent counts trained.
     pub replay_capacity: usize,
     /// How sequences are cut (default windows of 16 with burn-in 8; paper: whole episodes).
     pub sequence: SequenceMode,
@@ -123,46 +125,59 @@ pub struct UpdateStats {
 pub struct Learner {
     pub(crate) net_config: QNetConfig,
     pub(crate) config: LearnerConfig,
-    pub(crate) n_agents: usize,
+    pub(crate) agent_counts: Vec<usize>,
     pub(crate) device: Device,
     pub(crate) online: QNet,
     pub(crate) target: QNet,
     pub(crate) optim: ModuleOptimizer,
-    pub(crate) replay: Replay,
+    /// One buffer per agent count, in the order of `agent_counts`.
+    pub(crate) replays: Vec<Replay>,
     pub(crate) rng: ChaCha8Rng,
     pub(crate) counters: Counters,
 }
 
 impl Learner {
-    /// A fresh learner for `n_agents` agents; `device` must have autodiff enabled
+    /// A fresh learner for teams of each of the `agent_counts` (one shared network, one
+    /// replay buffer per count); `device` must have autodiff enabled
     /// (e.g. `Device::flex().autodiff()`). Everything random derives from `seed`.
+    ///
+    /// # Panics
+    /// If `agent_counts` is empty or a count is 0 or above the network's agent slots.
     pub fn new(
         net_config: QNetConfig,
         config: LearnerConfig,
-        n_agents: usize,
+        agent_counts: &[usize],
         seed: u64,
         device: &Device,
     ) -> Self {
         assert!(device.is_autodiff(), "the learner needs an autodiff device");
-        assert!(
-            (1..=net_config.n_agents_max).contains(&n_agents),
-            "{n_agents} agents do not fit {} agent slots",
-            net_config.n_agents_max
-        );
+        let mut agent_counts = agent_counts.to_vec();
+        agent_counts.sort_unstable();
+        agent_counts.dedup();
+        assert!(!agent_counts.is_empty(), "the learner needs at least one agent count");
+        for &n_agents in &agent_counts {
+            assert!(
+                (1..=net_config.n_agents_max).contains(&n_agents),
+                "{n_agents} agents do not fit {} agent slots",
+                net_config.n_agents_max
+            );
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let online = net_config.init(&mut rng, device);
         let target = online.valid();
         let optim = AdamConfig::new().init();
-        let replay = Replay::new(config.replay_capacity, n_agents, obs_shape(&net_config));
+        let shape = obs_shape(&net_config);
+        let capacity = (config.replay_capacity / agent_counts.len()).max(1);
+        let replays = agent_counts.iter().map(|&n| Replay::new(capacity, n, shape)).collect();
         Self {
             net_config,
             config,
-            n_agents,
+            agent_counts,
             device: device.clone(),
             online,
             target,
             optim,
-            replay,
+            replays,
             rng,
             counters: Counters::default(),
         }
@@ -178,9 +193,9 @@ impl Learner {
         &self.config
     }
 
-    /// Number of agents the learner trains.
-    pub fn n_agents(&self) -> usize {
-        self.n_agents
+    /// The team sizes the learner trains, ascending.
+    pub fn agent_counts(&self) -> &[usize] {
+        &self.agent_counts
     }
 
     /// Run counters.
@@ -193,14 +208,23 @@ impl Learner {
         self.config.epsilon.value(self.counters.env_steps)
     }
 
-    /// The replay buffer.
-    pub fn replay(&self) -> &Replay {
-        &self.replay
+    /// The replay buffers, one per agent count (in the order of [`Learner::agent_counts`]).
+    pub fn replays(&self) -> &[Replay] {
+        &self.replays
     }
 
-    /// The replay buffer, to add episodes.
-    pub fn replay_mut(&mut self) -> &mut Replay {
-        &mut self.replay
+    /// Store an episode in the buffer of its agent count.
+    ///
+    /// # Panics
+    /// If the learner does not train teams of that size.
+    pub fn store(&mut self, episode: Episode) {
+        let n_agents = episode.n_agents;
+        let idx = self
+            .agent_counts
+            .iter()
+            .position(|&n| n == n_agents)
+            .unwrap_or_else(|| panic!("the learner does not train teams of {n_agents}"));
+        self.replays[idx].push(episode);
     }
 
     /// The learner's RNG (exploration, episode seeds, replay sampling).
@@ -213,12 +237,17 @@ impl Learner {
         Policy::new(self.online.valid(), self.net_config.clone(), &self.device.clone().inner())
     }
 
-    /// One gradient update on a sampled batch; `None` before `learning_starts` episodes.
+    /// One gradient update on a batch sampled from one agent count's buffer; `None` while no
+    /// buffer holds `learning_starts` episodes. The buffers that do take turns, update by update.
     pub fn update(&mut self) -> Option<UpdateStats> {
-        if self.replay.len() < self.config.learning_starts.max(1) {
+        let ready: Vec<usize> = (0..self.replays.len())
+            .filter(|&idx| self.replays[idx].len() >= self.config.learning_starts.max(1))
+            .collect();
+        if ready.is_empty() {
             return None;
         }
-        let batch = self.replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng);
+        let replay = &self.replays[ready[(self.counters.updates % ready.len() as u64) as usize]];
+        let batch = replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng);
         Some(self.update_on(&batch))
     }
 
@@ -310,92 +339,6 @@ pub fn obs_shape(config: &QNetConfig) -> ObsShape {
         fov: config.fov,
         env_vec: config.env_vec,
         n_actions: config.n_actions,
-    }
-}
-
-/// Acting with a frozen network: batched recurrent step for all agents, then the head in
-/// leader order with the messages of the agents before.
-#[derive(Clone, Debug)]
-pub struct Policy {
-    net: QNet,
-    config: QNetConfig,
-    device: Device,
-    state: Option<RecurrentState>,
-}
-
-impl Policy {
-    /// Wrap a network (normally without autodiff: `net.valid()`).
-    pub fn new(net: QNet, config: QNetConfig, device: &Device) -> Self {
-        Self { net, config, device: device.clone(), state: None }
-    }
-
-    /// Forget the recurrent state (call at every episode start).
-    pub fn reset(&mut self) {
-        self.state = None;
-    }
-
-    /// Choose every agent's action for the current observation, ε-greedily among the allowed
-    /// actions, agents in `obs.order`. Writes `actions[agent_idx]`.
-    pub fn act(
-        &mut self,
-        obs: &ObsBuffers,
-        epsilon: f64,
-        rng: &mut ChaCha8Rng,
-        actions: &mut [u8],
-    ) {
-        let mut q = vec![0.0; obs.n_agents * self.config.n_actions];
-        self.act_with_q(obs, epsilon, rng, actions, &mut q);
-    }
-
-    /// [`Policy::act`] that also writes each agent's Q-values (`[N, A]`, row `agent_idx`, the
-    /// message being the actions chosen before it; masked actions hold [`MASKED_Q`]).
-    pub fn act_with_q(
-        &mut self,
-        obs: &ObsBuffers,
-        epsilon: f64,
-        rng: &mut ChaCha8Rng,
-        actions: &mut [u8],
-        q_out: &mut [f32],
-    ) {
-        let cfg = &self.config;
-        let n_agents = obs.n_agents;
-        debug_assert!(n_agents <= cfg.n_agents_max);
-        let (fov, channels, n_actions) = (cfg.fov, cfg.channels, cfg.n_actions);
-        let grid = Tensor::<5>::from_data(
-            TensorData::new(obs.grid.clone(), [n_agents, 1, channels, fov, fov]),
-            &self.device,
-        ); // [N, 1, C, F, F]
-        let mut vec = vec![0.0_f32; n_agents * cfg.vec_dim()];
-        for agent_idx in 0..n_agents {
-            let row = &mut vec[agent_idx * cfg.vec_dim()..(agent_idx + 1) * cfg.vec_dim()];
-            row[..cfg.env_vec]
-                .copy_from_slice(&obs.vec[agent_idx * cfg.env_vec..(agent_idx + 1) * cfg.env_vec]);
-            row[cfg.env_vec + agent_idx] = 1.0;
-        }
-        let vec = tensor3(vec, [n_agents, 1, cfg.vec_dim()], &self.device); // [N, 1, V]
-        let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take()); // [N, 1, H]
-        self.state = Some(state);
-        let mut message = vec![0.0_f32; cfg.message_dim()];
-        for &agent_idx in &obs.order {
-            let feat = features.clone().narrow(0, agent_idx, 1); // [1, 1, H]
-            let msg = tensor3(message.clone(), [1, 1, cfg.message_dim()], &self.device); // [1, 1, M]
-            let mask = obs.mask_of(agent_idx);
-            let q = &mut q_out[agent_idx * n_actions..(agent_idx + 1) * n_actions];
-            q.copy_from_slice(&to_vec(self.net.head(feat, msg))); // [A]
-            for (value, &ok) in q.iter_mut().zip(mask) {
-                if !ok {
-                    *value = MASKED_Q;
-                }
-            }
-            let action = if rng.random::<f64>() < epsilon {
-                let allowed: Vec<usize> = (0..n_actions).filter(|&a| mask[a]).collect();
-                allowed[rng.random_range(0..allowed.len())]
-            } else {
-                masked_argmax(q, mask)
-            };
-            actions[agent_idx] = action as u8;
-            message[agent_idx * n_actions + action] = 1.0;
-        }
     }
 }
 

@@ -5,8 +5,10 @@
 //! - [`env`](mod@env): the environment interface the learner trains on ([`MarlEnv`], flat buffers);
 //! - [`adapter`]: [`MarlEnv`] over `phalanx-env` ([`PoolEnv`], one type for every task);
 //! - [`replay`]: episode replay, padded episodes or windows with burn-in;
-//! - [`learner`]: VDN + double DQN with a target network, masked actions, ε-greedy acting;
-//! - [`train`]: the collect/update loop and its metric names;
+//! - [`learner`]: VDN + double DQN with a target network and masked actions;
+//! - [`policy`]: acting, one episode or many in lockstep (batched inference, leader order);
+//! - [`eval`]: greedy evaluation on given instances, in lockstep batches;
+//! - [`train`]: the collect/update loop ([`Collector`]) and its metric names;
 //! - [`checkpoint`]: atomic checkpoints of the whole learner with typed load errors.
 //!
 //! Built on burn 0.22: modules carry no backend type parameter, the backend and autodiff are
@@ -15,26 +17,31 @@
 //!
 //! ```ignore
 //! use burn::tensor::Device;
-//! use phalanx_rl::{Learner, LearnerConfig, QNetConfig};
+//! use phalanx_rl::{Collector, Learner, LearnerConfig, QNetConfig};
 //!
 //! let device = Device::flex().autodiff();
-//! let mut learner = Learner::new(QNetConfig::default(), LearnerConfig::default(), 3, 7, &device);
-//! learner.train(&mut env, 100_000, 96, &mut |name, step, value| log(name, step, value));
+//! let mut learner = Learner::new(QNetConfig::default(), LearnerConfig::default(), &[3], 7, &device);
+//! let mut collector = Collector::new(envs, 96); // e.g. 16 `PoolEnv`s, episodes cut at 96 steps
+//! learner.train(&mut collector, 100_000, &mut |name, step, value| log(name, step, value));
 //! learner.save("run/checkpoint.bin".as_ref())?;
 //! ```
 
 pub mod adapter;
 pub mod checkpoint;
 pub mod env;
+pub mod eval;
 pub mod learner;
 pub mod net;
+pub mod policy;
 pub mod replay;
 pub mod train;
 
-pub use adapter::PoolEnv;
+pub use adapter::{PoolEnv, Shaping, TaskEnv};
 pub use checkpoint::CheckpointError;
 pub use env::{MarlEnv, ObsBuffers, ObsShape, StepOut};
-pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, Policy, UpdateStats};
+pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
+pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
 pub use net::{EncoderConfig, QNet, QNetConfig, RecurrentState};
+pub use policy::Policy;
 pub use replay::{Batch, Episode, Replay, SequenceMode};
-pub use train::{MetricSink, metrics};
+pub use train::{Collector, MetricSink, metrics};

@@ -34,6 +34,8 @@ pub enum SequenceMode {
 /// One recorded episode.
 #[derive(Clone, Debug, Default)]
 pub struct Episode {
+    /// Agents `N`.
+    pub n_agents: usize,
     /// Number of steps `T`.
     pub len: usize,
     /// Grid observations, `[T + 1, N, C, F, F]`.
@@ -55,7 +57,7 @@ pub struct Episode {
 impl Episode {
     /// Start an episode at its first observation.
     pub fn start(obs: &ObsBuffers) -> Self {
-        let mut res = Self::default();
+        let mut res = Self { n_agents: obs.n_agents, ..Self::default() };
         res.push_obs(obs);
         res
     }
@@ -180,6 +182,11 @@ impl Replay {
         Self { capacity, n_agents, shape, episodes: VecDeque::with_capacity(capacity.min(1024)) }
     }
 
+    /// Agents per stored episode.
+    pub fn n_agents(&self) -> usize {
+        self.n_agents
+    }
+
     /// Number of stored episodes.
     pub fn len(&self) -> usize {
         self.episodes.len()
@@ -198,6 +205,7 @@ impl Replay {
     /// Store an episode (of at least one step), evicting the oldest when full.
     pub fn push(&mut self, episode: Episode) {
         assert!(episode.len > 0, "an episode needs at least one step");
+        assert_eq!(episode.n_agents, self.n_agents, "agent count mismatch");
         assert_eq!(episode.actions.len(), episode.len * self.n_agents, "agent count mismatch");
         assert_eq!(
             episode.grid.len(),

@@ -1,14 +1,18 @@
-//! The training loop: collect episodes with ε-greedy acting, store them, update on replay.
+//! The training loop: collect episodes with ε-greedy acting, many in lockstep ([`Collector`]),
+//! store them, update on replay.
 //!
 //! Metrics go to a caller-supplied sink under the names listed in [`metrics`] (and in
 //! `docs/learning.md`); the library never prints.
 
 use std::time::Instant;
 
+use burn::module::Module as _;
 use rand::Rng;
+use rayon::prelude::*;
 
-use crate::env::{MarlEnv, ObsBuffers};
-use crate::learner::{Learner, Policy};
+use crate::env::{MarlEnv, ObsBuffers, StepOut};
+use crate::learner::Learner;
+use crate::policy::Policy;
 use crate::replay::Episode;
 
 /// Metric names (CleanRL style namespaces).
@@ -19,8 +23,10 @@ pub mod metrics {
     pub const EPISODIC_LENGTH: &str = "charts/episodic_length";
     /// 1 if the episode terminated (goal reached), 0 if truncated.
     pub const SUCCESS: &str = "charts/success_rate";
-    /// Exploration rate at the end of the episode.
+    /// Exploration rate at the end of the episode (recorded last for each episode).
     pub const EPSILON: &str = "charts/epsilon";
+    /// Moves cancelled by collisions in a finished training episode.
+    pub const COLLISIONS: &str = "charts/collisions";
     /// Masked mean squared TD error of an update.
     pub const TD_LOSS: &str = "losses/td_loss";
     /// Mean team Q of the taken actions in an update.
@@ -76,61 +82,176 @@ pub fn run_episode<E: MarlEnv>(
     episode
 }
 
+/// Episodes played in lockstep for training: `n_envs` environments (teams of possibly
+/// different sizes), one batched policy call per step for all of them
+/// ([`Policy::act_batch`]), stepped in parallel (rayon; results by index, so the thread count
+/// does not change them). A finished episode goes to the learner's replay and its environment
+/// starts a new one at once, from a seed drawn from the learner's RNG.
+///
+/// The collector lives across [`Learner::train`] calls, so a run split into chunks (for
+/// checkpoints) continues its episodes.
+pub struct Collector<E: MarlEnv> {
+    envs: Vec<E>,
+    obs: Vec<ObsBuffers>,
+    agents: Vec<usize>,
+    offsets: Vec<usize>,
+    running: Vec<Episode>,
+    collisions: Vec<u64>,
+    actions: Vec<u8>,
+    restart: Vec<bool>,
+    policy: Option<Policy>,
+    /// The learner's update count the policy's weights come from.
+    weights_of: u64,
+    max_steps: usize,
+    since_update: u64,
+}
+
+impl<E: MarlEnv + Send> Collector<E> {
+    /// A collector over `envs`; episodes longer than `max_episode_steps` are cut (truncated).
+    ///
+    /// # Panics
+    /// If `envs` is empty.
+    pub fn new(envs: Vec<E>, max_episode_steps: usize) -> Self {
+        assert!(!envs.is_empty(), "a collector needs environments");
+        let obs: Vec<ObsBuffers> =
+            envs.iter().map(|env| ObsBuffers::new(env.n_agents(), env.obs_shape())).collect();
+        let agents: Vec<usize> = envs.iter().map(MarlEnv::n_agents).collect();
+        let offsets = agents
+            .iter()
+            .scan(0, |next, &n| {
+                let at = *next;
+                *next += n;
+                Some(at)
+            })
+            .collect();
+        let total = agents.iter().sum();
+        Self {
+            obs,
+            offsets,
+            running: Vec::new(),
+            collisions: vec![0; envs.len()],
+            actions: vec![0; total],
+            restart: vec![false; envs.len()],
+            policy: None,
+            weights_of: 0,
+            max_steps: max_episode_steps.max(1),
+            since_update: 0,
+            agents,
+            envs,
+        }
+    }
+
+    /// Number of environments.
+    pub fn n_envs(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Agents of each environment.
+    pub fn agent_counts(&self) -> &[usize] {
+        &self.agents
+    }
+}
+
 impl Learner {
-    /// Train until `total_env_steps` more environment steps have been taken.
-    /// Episodes longer than `max_episode_steps` are cut (truncated).
-    pub fn train<E: MarlEnv>(
+    /// Train until `total_env_steps` more environment steps have been taken (a step of one
+    /// environment counts one; the last lockstep step may overshoot by `n_envs - 1`).
+    /// One gradient update per `train_every` environment steps once a replay buffer holds
+    /// `learning_starts` episodes.
+    ///
+    /// # Panics
+    /// If an environment's team size is not one the learner trains.
+    pub fn train<E: MarlEnv + Send>(
         &mut self,
-        env: &mut E,
+        collector: &mut Collector<E>,
         total_env_steps: u64,
-        max_episode_steps: usize,
         sink: &mut impl MetricSink,
     ) {
-        assert_eq!(env.n_agents(), self.n_agents(), "environment and learner disagree on agents");
-        let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
-        let end = self.counters().env_steps + total_env_steps;
+        for &n in &collector.agents {
+            assert!(self.agent_counts.contains(&n), "the learner does not train teams of {n}");
+        }
+        let end = self.counters.env_steps + total_env_steps;
         let started = Instant::now();
-        let steps_at_start = self.counters().env_steps;
-        let mut since_update = 0_u64;
-        while self.counters().env_steps < end {
-            let mut policy = self.policy();
-            let seed = self.rng.random::<u64>();
-            let schedule = self.config.epsilon;
-            let env_steps = self.counters.env_steps;
-            let episode = run_episode(
-                env,
-                &mut policy,
-                &mut obs,
-                seed,
-                max_episode_steps,
-                |step| schedule.value(env_steps + step as u64),
-                &mut self.rng,
-            );
-            let counters = &mut self.counters;
-            counters.env_steps += episode.len as u64;
-            counters.episodes += 1;
-            let now = counters.env_steps;
-            sink.record(metrics::EPISODIC_RETURN, now, f64::from(episode.team_return()));
-            sink.record(metrics::EPISODIC_LENGTH, now, episode.len as f64);
-            sink.record(metrics::SUCCESS, now, if episode.terminated { 1.0 } else { 0.0 });
-            sink.record(metrics::EPSILON, now, self.epsilon());
-            since_update += episode.len as u64;
-            self.replay_mut().push(episode);
-            let train_every = self.config().train_every.max(1);
-            while since_update >= train_every {
-                since_update -= train_every;
+        let steps_at_start = self.counters.env_steps;
+        while self.counters.env_steps < end {
+            self.collect_step(collector, sink);
+            let train_every = self.config.train_every.max(1);
+            while collector.since_update >= train_every {
+                collector.since_update -= train_every;
                 let timer = Instant::now();
                 let Some(stats) = self.update() else {
-                    since_update = 0;
+                    collector.since_update = 0;
                     break;
                 };
+                let now = self.counters.env_steps;
                 sink.record(metrics::UPDATE_MS, now, timer.elapsed().as_secs_f64() * 1e3);
                 sink.record(metrics::TD_LOSS, now, f64::from(stats.td_loss));
                 sink.record(metrics::Q_VALUES, now, f64::from(stats.q_taken));
                 sink.record(metrics::GRAD_NORM, now, f64::from(stats.grad_norm));
             }
-            let elapsed = started.elapsed().as_secs_f64().max(1e-9);
-            sink.record(metrics::SPS, now, (now - steps_at_start) as f64 / elapsed);
         }
+        let elapsed = started.elapsed().as_secs_f64().max(1e-9);
+        let now = self.counters.env_steps;
+        sink.record(metrics::SPS, now, (now - steps_at_start) as f64 / elapsed);
+    }
+
+    /// One lockstep step of every environment of `collector`; finished episodes are stored
+    /// and logged, and their environments reset.
+    fn collect_step<E: MarlEnv + Send>(
+        &mut self,
+        collector: &mut Collector<E>,
+        sink: &mut impl MetricSink,
+    ) {
+        let c = collector;
+        if c.running.is_empty() {
+            for (env, obs) in c.envs.iter_mut().zip(&mut c.obs) {
+                env.reset(self.rng.random::<u64>(), obs);
+                c.running.push(Episode::start(obs));
+            }
+            c.policy = None;
+        }
+        let updates = self.counters.updates;
+        match &mut c.policy {
+            Some(policy) if c.weights_of != updates => policy.set_net(self.online.valid()),
+            Some(_) => {}
+            None => c.policy = Some(self.policy()),
+        }
+        c.weights_of = updates;
+        let policy = c.policy.as_mut().expect("set above");
+        let epsilon = self.epsilon();
+        policy.act_batch(&c.obs, epsilon, &mut self.rng, &mut c.actions, None);
+
+        let actions = &c.actions;
+        let outs: Vec<StepOut> = c
+            .envs
+            .par_iter_mut()
+            .zip(c.obs.par_iter_mut())
+            .zip(c.offsets.par_iter())
+            .map(|((env, obs), &at)| env.step(&actions[at..at + obs.n_agents], obs))
+            .collect();
+        for (e, out) in outs.iter().enumerate() {
+            let (at, n) = (c.offsets[e], c.agents[e]);
+            let episode = &mut c.running[e];
+            episode.push_step(&actions[at..at + n], out.team_reward, &c.obs[e]);
+            c.collisions[e] += u64::from(out.collisions);
+            self.counters.env_steps += 1;
+            c.since_update += 1;
+            let done = out.terminated || out.truncated || episode.len >= c.max_steps;
+            c.restart[e] = done;
+            if !done {
+                continue;
+            }
+            episode.terminated = out.terminated;
+            let now = self.counters.env_steps;
+            sink.record(metrics::EPISODIC_RETURN, now, f64::from(episode.team_return()));
+            sink.record(metrics::EPISODIC_LENGTH, now, episode.len as f64);
+            sink.record(metrics::COLLISIONS, now, std::mem::take(&mut c.collisions[e]) as f64);
+            sink.record(metrics::SUCCESS, now, if out.terminated { 1.0 } else { 0.0 });
+            sink.record(metrics::EPSILON, now, epsilon);
+            c.envs[e].reset(self.rng.random::<u64>(), &mut c.obs[e]);
+            let finished = std::mem::replace(episode, Episode::start(&c.obs[e]));
+            self.counters.episodes += 1;
+            self.store(finished);
+        }
+        policy.reset_envs(&c.agents, &c.restart);
     }
 }

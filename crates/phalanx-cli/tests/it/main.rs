@@ -170,12 +170,15 @@ fn read_metrics(path: &Path) -> Vec<(String, u64)> {
 fn train_writes_metrics_and_checkpoint_then_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let config = r#"{"n_agents": 2, "pool": {"n_maps": 4}, "env": {"step_limit": 20}}"#;
+    let config =
+        r#"{"agent_counts": [2], "n_envs": 1, "pool": {"n_maps": 4}, "env": {"step_limit": 20}}"#;
     std::fs::write(d.join("cfg.json"), config).unwrap();
     let args = ["train", "pathfinding", "--config", "cfg.json", "--steps", "200", "--out", "run"];
     let (stdout, _) = check(&phalanx(d, &args), 0);
     assert!(stdout.contains("env steps"), "{stdout}");
     assert!(d.join("run/checkpoint").is_file());
+    let curves = std::fs::read_to_string(d.join("run/curves.svg")).unwrap();
+    assert!(curves.starts_with("<svg") && curves.contains("success rate"), "{curves:.200}");
     let first = read_metrics(&d.join("run/metrics.jsonl"));
     let n_episodes = first.iter().filter(|(name, _)| name == "charts/episodic_return").count();
     assert_eq!(n_episodes, 10, "200 steps of 20-step episodes");
@@ -197,7 +200,7 @@ fn train_with_updates_then_resume_continues() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let config = r#"{
-        "n_agents": 2, "checkpoint_every": 5, "pool": {"n_maps": 2}, "env": {"step_limit": 10},
+        "agent_counts": [2, 3], "n_envs": 4, "checkpoint_every": 5, "pool": {"n_maps": 2}, "env": {"step_limit": 10},
         "learner": {"gamma": 0.95, "lr": 0.0005, "batch_size": 4, "replay_capacity": 100,
             "sequence": {"kind": "windows", "len": 4, "burn_in": 2},
             "target_update_interval": 10,
@@ -216,6 +219,33 @@ fn train_with_updates_then_resume_continues() {
     let (stdout, _) = check(&phalanx(d, &args), 0);
     assert!(summary_value(&stdout, "updates") > first, "{stdout}");
     assert!(summary_value(&stdout, "env steps") >= 140, "{stdout}");
+
+    // The run directory evaluates on fresh maps, for either team size.
+    for agents in ["2", "3"] {
+        let args = ["eval", "--policy", "formation", "--weights", "run", "--maps", "3"];
+        let args = [&args[..], &["--size", "16", "--agents", agents, "--json"]].concat();
+        let (stdout, _) = check(&phalanx(d, &args), 0);
+        let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        for key in ["success_rate", "makespan", "collisions", "formation_loss"] {
+            assert!(report.get(key).is_some(), "{key} missing: {stdout}");
+        }
+        assert_eq!(report["episodes"], 3, "{stdout}");
+        assert_eq!(report["max_steps"], 50, "{stdout}");
+    }
+}
+
+#[test]
+fn eval_bad_input_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = ["eval", "--policy", "pathfinding", "--weights", "nowhere"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("nowhere"), "{stderr}");
+    std::fs::create_dir(d.join("bad")).unwrap();
+    std::fs::write(d.join("bad/policy.bin"), "not a policy").unwrap();
+    let args = ["eval", "--policy", "pathfinding", "--weights", "bad"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("policy.bin") && stderr.contains("magic"), "{stderr}");
 }
 
 /// The integer after `key` in `phalanx train`'s summary table.
@@ -237,9 +267,9 @@ fn train_bad_config_exits_2_naming_the_file() {
     std::fs::write(d.join("typo.json"), r#"{"n_agnets": 2}"#).unwrap();
     let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "typo.json"]), 2);
     assert!(stderr.contains("typo.json") && stderr.contains("n_agnets"), "{stderr}");
-    std::fs::write(d.join("many.json"), r#"{"n_agents": 9}"#).unwrap();
+    std::fs::write(d.join("many.json"), r#"{"agent_counts": [3, 9]}"#).unwrap();
     let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "many.json"]), 2);
-    assert!(stderr.contains("n_agents 9"), "{stderr}");
+    assert!(stderr.contains("agent count 9"), "{stderr}");
     let (_, stderr) = check(&phalanx(d, &["train", "pathfinding", "--resume"]), 2);
     assert!(stderr.contains("checkpoint"), "{stderr}");
     assert!(!d.join("run").exists(), "nothing written on bad input");

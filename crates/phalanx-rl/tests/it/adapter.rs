@@ -2,7 +2,7 @@
 //! masked steps, episodes ending by the step limit, and a short training run.
 
 use phalanx_env::{EnvConfig, PoolConfig, Task};
-use phalanx_rl::{Learner, LearnerConfig, MarlEnv, ObsBuffers, PoolEnv, QNetConfig};
+use phalanx_rl::{Collector, Learner, LearnerConfig, MarlEnv, ObsBuffers, PoolEnv, QNetConfig};
 use rand::SeedableRng;
 use rand::seq::IndexedRandom;
 use rand_chacha::ChaCha8Rng;
@@ -79,18 +79,27 @@ fn formation_random_episode_ends_by_the_limit() {
 }
 
 #[test]
-fn learner_trains_on_path_finding() {
+fn learner_trains_on_path_finding_with_mixed_team_sizes() {
     let device = crate::train_device();
-    let mut env = PoolEnv::new(Task::PathFinding, &small_pool(), env_config(), 3).unwrap();
-    let config = LearnerConfig { learning_starts: 4, batch_size: 8, ..LearnerConfig::default() };
-    let mut learner = Learner::new(QNetConfig::default(), config, 3, 5, &device);
+    let three = PoolEnv::new(Task::PathFinding, &small_pool(), env_config(), 3).unwrap();
+    let envs = vec![three.with_agents(4).unwrap(), three.clone(), three];
+    let config = LearnerConfig { learning_starts: 2, batch_size: 8, ..LearnerConfig::default() };
+    let mut learner = Learner::new(QNetConfig::default(), config, &[3, 4], 5, &device);
     let mut n_returns = 0;
-    learner.train(&mut env, 300, 96, &mut |name: &'static str, _step, value: f64| {
-        assert!(value.is_finite(), "{name} = {value}");
-        n_returns += usize::from(name == phalanx_rl::metrics::EPISODIC_RETURN);
-    });
+    learner.train(
+        &mut Collector::new(envs, 96),
+        600,
+        &mut |name: &'static str, _step, value: f64| {
+            assert!(value.is_finite(), "{name} = {value}");
+            n_returns += usize::from(name == phalanx_rl::metrics::EPISODIC_RETURN);
+        },
+    );
     let counters = learner.counters();
-    assert!(counters.env_steps >= 300);
+    assert!(counters.env_steps >= 600);
     assert_eq!(counters.episodes as usize, n_returns);
-    assert!(counters.updates > 0, "no update in 300 steps");
+    assert!(counters.updates > 0, "no update in 600 steps");
+    let stored: Vec<(usize, usize)> =
+        learner.replays().iter().map(|replay| (replay.n_agents(), replay.len())).collect();
+    assert_eq!(stored.iter().map(|it| it.0).collect::<Vec<_>>(), [3, 4]);
+    assert!(stored.iter().all(|it| it.1 > 0), "episodes per team size {stored:?}");
 }

@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use burn::tensor::Device;
-use phalanx_rl::checkpoint::{load_policy, read_header};
-use phalanx_rl::{CheckpointError, Learner, ObsBuffers, Policy, QNetConfig};
+use phalanx_rl::checkpoint::{load_policy, load_policy_any, read_header};
+use phalanx_rl::{CheckpointError, Collector, Learner, ObsBuffers, Policy, QNetConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -28,8 +28,12 @@ fn greedy_actions(policy: &mut Policy) -> Vec<u8> {
 fn trained_learner(device: &Device) -> Learner {
     let mut config = corridor_learner();
     config.learning_starts = 2;
-    let mut learner = Learner::new(corridor_net(), config, 2, 9, device);
-    learner.train(&mut Corridor::new(), 60, 10, &mut |_: &'static str, _, _| {});
+    let mut learner = Learner::new(corridor_net(), config, &[2], 9, device);
+    learner.train(
+        &mut Collector::new(vec![Corridor::new()], 10),
+        60,
+        &mut |_: &'static str, _, _| {},
+    );
     assert!(learner.counters().updates > 0);
     learner
 }
@@ -53,8 +57,8 @@ fn checkpoint_round_trip_is_bit_identical() {
     assert_eq!(greedy_actions(&mut learner.policy()), greedy_actions(&mut loaded.policy()));
 
     // Same optimiser and RNG state: the next updates (on the same replay) agree.
-    for episode in learner.replay().episodes() {
-        loaded.replay_mut().push(episode.clone());
+    for episode in learner.replays()[0].episodes() {
+        loaded.store(episode.clone());
     }
     let a = learner.update().unwrap();
     let b = loaded.update().unwrap();
@@ -64,6 +68,32 @@ fn checkpoint_round_trip_is_bit_identical() {
     // The policy alone loads too.
     let mut policy = load_policy(&path, &corridor_net(), &crate::plain_device()).unwrap();
     let _ = greedy_actions(&mut policy);
+}
+
+#[test]
+fn policy_file_acts_like_the_learner_and_cannot_resume() {
+    let device = crate::train_device();
+    let dir = tempfile::tempdir().unwrap();
+    let (full, slim) = (dir.path().join("checkpoint"), dir.path().join("policy.bin"));
+    let learner = trained_learner(&device);
+    learner.save(&full).unwrap();
+    learner.save_policy(&slim).unwrap();
+    let (full_len, slim_len) = (file_len(&full), file_len(&slim));
+    assert!(slim_len * 3 < full_len, "policy file {slim_len} B, checkpoint {full_len} B");
+    let (mut policy, header) = load_policy_any(&slim, &crate::plain_device()).unwrap();
+    assert_eq!(header.agent_counts, [2]);
+    assert_eq!(header.counters, learner.counters());
+    assert_eq!(greedy_actions(&mut policy), greedy_actions(&mut learner.policy()));
+    match Learner::load(&slim, &device) {
+        Err(CheckpointError::Malformed { reason, .. }) => {
+            assert!(reason.contains("policy file"), "{reason}");
+        }
+        other => panic!("expected Malformed, got {:?}", other.map(|_| ())),
+    }
+}
+
+fn file_len(path: &Path) -> u64 {
+    std::fs::metadata(path).unwrap().len()
 }
 
 /// Q-values of the online network on a fixed observation, as raw bits.
@@ -91,7 +121,7 @@ fn wrong_network_is_a_config_mismatch() {
     let device = crate::train_device();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("learner.ckpt");
-    Learner::new(corridor_net(), corridor_learner(), 2, 1, &device).save(&path).unwrap();
+    Learner::new(corridor_net(), corridor_learner(), &[2], 1, &device).save(&path).unwrap();
     let wrong = QNetConfig { lstm_hidden: 16, ..corridor_net() };
     let err = load_policy(&path, &wrong, &crate::plain_device()).err().unwrap();
     assert!(matches!(err, CheckpointError::ConfigMismatch { .. }), "{err}");
@@ -112,9 +142,9 @@ fn tensors_of_another_network_are_a_record_error() {
     let device = crate::train_device();
     let dir = tempfile::tempdir().unwrap();
     let (a, b) = (dir.path().join("a.ckpt"), dir.path().join("b.ckpt"));
-    Learner::new(corridor_net(), corridor_learner(), 2, 1, &device).save(&a).unwrap();
+    Learner::new(corridor_net(), corridor_learner(), &[2], 1, &device).save(&a).unwrap();
     let small = QNetConfig { lstm_hidden: 16, ..corridor_net() };
-    Learner::new(small, corridor_learner(), 2, 1, &device).save(&b).unwrap();
+    Learner::new(small, corridor_learner(), &[2], 1, &device).save(&b).unwrap();
     // Header of `a`, tensors of `b`.
     let sections = |path: &Path| {
         let bytes = std::fs::read(path).unwrap();

@@ -6,8 +6,8 @@
 
 use phalanx_rl::train::run_episode;
 use phalanx_rl::{
-    EncoderConfig, EpsilonSchedule, Learner, LearnerConfig, MarlEnv, ObsBuffers, ObsShape,
-    QNetConfig, SequenceMode, StepOut,
+    Collector, EncoderConfig, EpsilonSchedule, Learner, LearnerConfig, MarlEnv, ObsBuffers,
+    ObsShape, QNetConfig, SequenceMode, StepOut,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -80,6 +80,7 @@ impl MarlEnv for Corridor {
             team_reward: if done { 10.0 } else { -1.0 },
             terminated: done,
             truncated: !done && self.t >= LIMIT,
+            collisions: 0,
         }
     }
 }
@@ -118,14 +119,18 @@ pub(crate) fn corridor_learner() -> LearnerConfig {
 #[test]
 fn corridor_is_solved() {
     let device = crate::train_device();
-    let mut learner = Learner::new(corridor_net(), corridor_learner(), 2, 11, &device);
+    let mut learner = Learner::new(corridor_net(), corridor_learner(), &[2], 11, &device);
     let mut env = Corridor::new();
     let mut n_updates = 0;
-    learner.train(&mut env, 1200, LIMIT, &mut |name: &'static str, _step, _value| {
-        if name == phalanx_rl::metrics::TD_LOSS {
-            n_updates += 1;
-        }
-    });
+    learner.train(
+        &mut Collector::new(vec![Corridor::new(), Corridor::new()], LIMIT),
+        1200,
+        &mut |name: &'static str, _step, _value| {
+            if name == phalanx_rl::metrics::TD_LOSS {
+                n_updates += 1;
+            }
+        },
+    );
     assert!(n_updates > 100, "only {n_updates} updates");
 
     let mut policy = learner.policy();

@@ -2,7 +2,7 @@
 
 use burn::tensor::{Bool, Tensor, TensorData};
 use phalanx_rl::learner::{MASKED_Q, mask_q, masked_argmax, td_targets, vdn_sum};
-use phalanx_rl::{EpsilonSchedule, Learner, LearnerConfig, QNetConfig, SequenceMode};
+use phalanx_rl::{Collector, EpsilonSchedule, Learner, LearnerConfig, QNetConfig, SequenceMode};
 
 use crate::corridor::{Corridor, corridor_learner, corridor_net};
 
@@ -82,13 +82,17 @@ fn short_run_losses(seed: u64) -> Vec<f64> {
     let device = crate::train_device();
     let mut config = corridor_learner();
     config.learning_starts = 4;
-    let mut learner = Learner::new(corridor_net(), config, 2, seed, &device);
+    let mut learner = Learner::new(corridor_net(), config, &[2], seed, &device);
     let mut losses = Vec::new();
-    learner.train(&mut Corridor::new(), 200, 10, &mut |name: &'static str, _step, value| {
-        if name == phalanx_rl::metrics::TD_LOSS {
-            losses.push(value);
-        }
-    });
+    learner.train(
+        &mut Collector::new(vec![Corridor::new()], 10),
+        200,
+        &mut |name: &'static str, _step, value| {
+            if name == phalanx_rl::metrics::TD_LOSS {
+                losses.push(value);
+            }
+        },
+    );
     losses
 }
 
@@ -106,13 +110,17 @@ fn windows_with_burn_in_train() {
     let mut config = corridor_learner();
     config.sequence = SequenceMode::Windows { len: 4, burn_in: 2 };
     config.learning_starts = 4;
-    let mut learner = Learner::new(corridor_net(), config, 2, 3, &device);
+    let mut learner = Learner::new(corridor_net(), config, &[2], 3, &device);
     let mut losses = Vec::new();
-    learner.train(&mut Corridor::new(), 150, 10, &mut |name: &'static str, _step, value| {
-        if name == phalanx_rl::metrics::TD_LOSS {
-            losses.push(value);
-        }
-    });
+    learner.train(
+        &mut Collector::new(vec![Corridor::new()], 10),
+        150,
+        &mut |name: &'static str, _step, value| {
+            if name == phalanx_rl::metrics::TD_LOSS {
+                losses.push(value);
+            }
+        },
+    );
     assert!(losses.len() >= 10, "only {} updates", losses.len());
     assert!(losses.iter().all(|it| it.is_finite()));
 }

@@ -6,6 +6,7 @@ mod checkpoint;
 mod corridor;
 mod learner;
 mod net;
+mod policy;
 mod replay;
 
 use burn::tensor::Device;

@@ -1,0 +1,216 @@
+//! `phalanx eval`: run a trained low-level policy greedily on freshly generated instances
+//! (the evaluation stream, never the training pool) and print success rate, makespan,
+//! collisions and formation loss; the work is `phalanx_rl::evaluate`.
+//!
+//! Path finding runs on generated instances (SPEC §2: start and goal regions in opposite
+//! corners). Formation runs, by default, in the formation-training environment on fresh maps:
+//! agents placed at random within each other's view, a random target formation, success when
+//! `L_f = 0` within `--max-steps` (default 50).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::Context as _;
+use burn::tensor::Device;
+use indicatif::{ProgressBar, ProgressStyle};
+use phalanx_core::Instance;
+use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, Task, formation_instance};
+use phalanx_rl::checkpoint::load_policy_any;
+use phalanx_rl::{EvalSummary, Rollouts, evaluate};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use crate::models;
+use crate::train::TaskName;
+use crate::util;
+
+/// Episodes per lockstep batch (one batched policy call per step for all of them).
+const BATCH: usize = 25;
+
+/// Step limit of formation episodes unless `--max-steps` says otherwise (the quality target:
+/// formation reached within 50 steps).
+const FORMATION_STEPS: u32 = 50;
+
+/// Evaluates a trained policy on fresh instances.
+#[derive(Debug, clap::Args)]
+pub(crate) struct EvalCmd {
+    /// The policy to evaluate.
+    #[arg(long, value_enum)]
+    policy: TaskName,
+    /// Directory with policy.bin or checkpoint (default: the shipped models/<policy>).
+    #[arg(long, value_name = "DIR")]
+    weights: Option<PathBuf>,
+    /// Number of fresh maps (one episode each).
+    #[arg(long, default_value_t = 100)]
+    maps: usize,
+    /// Map side.
+    #[arg(long, default_value_t = 32)]
+    size: u32,
+    /// Obstacle density.
+    #[arg(long, default_value_t = 0.15)]
+    density: f64,
+    /// Agents per episode.
+    #[arg(long, default_value_t = 3)]
+    agents: usize,
+    /// Base seed of the evaluation stream.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Step limit (default: 3 × side for path finding, 50 for formation).
+    #[arg(long, value_name = "N")]
+    max_steps: Option<u32>,
+    /// Test-time rollouts per instance (SPEC §6): the first greedy, the others with random
+    /// actions (--random-prob); the best one counts and the time covers all of them.
+    #[arg(long, default_value_t = 1)]
+    rollouts: usize,
+    /// Probability of a random allowed action per agent and step in the extra rollouts.
+    #[arg(long, default_value_t = 0.05)]
+    random_prob: f64,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// What `phalanx eval --json` prints.
+#[derive(Debug, Serialize)]
+struct Report<'a> {
+    policy: &'a str,
+    weights: String,
+    size: u32,
+    density: f64,
+    agents: usize,
+    seed: u64,
+    max_steps: u32,
+    rollouts: Rollouts,
+    #[serde(flatten)]
+    summary: EvalSummary,
+    /// Wall seconds of the episodes (policy and environment).
+    seconds: f64,
+    /// Agent decisions per second (agents × steps / seconds), batched inference.
+    decisions_per_s: f64,
+}
+
+/// Runs `phalanx eval`.
+pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
+    let name = cmd.policy.name();
+    let file = models::weights_file(cmd.weights.as_deref(), name)?;
+    let device = Device::flex();
+    let (mut policy, header) =
+        load_policy_any(&file, &device).with_context(|| format!("loading the {name} policy"))?;
+    let fov = header.net_config.fov as u32;
+    anyhow::ensure!(
+        (1..=header.net_config.n_agents_max).contains(&cmd.agents),
+        "--agents {} must be between 1 and the network's {} agent slots",
+        cmd.agents,
+        header.net_config.n_agents_max
+    );
+    let task = cmd.policy.task();
+    let max_steps = cmd.max_steps.unwrap_or(match task {
+        Task::Formation => FORMATION_STEPS,
+        Task::PathFinding | Task::Meta => 3 * cmd.size,
+    });
+    anyhow::ensure!(max_steps > 0, "--max-steps must be positive");
+    let env = EnvConfig { fov, task, step_limit: Some(max_steps), ..EnvConfig::default() };
+    let instances = instances(&cmd, task, fov)?;
+
+    let bar = ProgressBar::new(instances.len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} episodes, eta {eta}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    let started = Instant::now();
+    anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&cmd.random_prob),
+        "--random-prob {} must be in [0, 1]",
+        cmd.random_prob
+    );
+    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
+    let episodes = evaluate(&mut policy, task, &env, &instances, BATCH, rollouts, &mut |done| {
+        bar.set_position(done as u64);
+    })
+    .context("evaluating")?;
+    let seconds = started.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let decisions: usize = episodes.iter().map(|it| it.steps * it.n_agents).sum();
+    let report = Report {
+        policy: name,
+        weights: file.display().to_string(),
+        size: cmd.size,
+        density: cmd.density,
+        agents: cmd.agents,
+        seed: cmd.seed,
+        max_steps,
+        rollouts,
+        summary: EvalSummary::of(&episodes),
+        seconds,
+        decisions_per_s: decisions as f64 / seconds.max(1e-9),
+    };
+    if cmd.json {
+        util::print_json(&serde_json::to_value(&report)?)?;
+    } else {
+        util::print(&text(&report))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The evaluation instances: `--maps` of them from the evaluation stream.
+fn instances(cmd: &EvalCmd, task: Task, fov: u32) -> anyhow::Result<Vec<Instance>> {
+    let maps = EvalMaps::new(EvalConfig {
+        size: cmd.size,
+        density: cmd.density,
+        n_agents: if task == Task::Formation { 1 } else { cmd.agents },
+        fov,
+        seed: cmd.seed,
+    });
+    let mut res = Vec::with_capacity(cmd.maps);
+    let mut index = 0_u64;
+    while res.len() < cmd.maps {
+        let generated = maps.instance(index).context("generating an evaluation instance")?;
+        if task == Task::Formation {
+            // A formation episode on the fresh map; a map without room for one is skipped.
+            let mut rng = ChaCha8Rng::seed_from_u64(maps.seed(index));
+            if let Ok(instance) = formation_instance(generated.grid(), cmd.agents, fov, &mut rng) {
+                res.push(instance);
+            }
+            anyhow::ensure!(
+                index < 10 * cmd.maps as u64 + 100,
+                "no room for a formation of {} agents on these maps",
+                cmd.agents
+            );
+        } else {
+            res.push(generated);
+        }
+        index += 1;
+    }
+    Ok(res)
+}
+
+/// The report as a table.
+fn text(r: &Report<'_>) -> String {
+    let s = &r.summary;
+    util::table(&[
+        ("policy", format!("{} ({})", r.policy, r.weights)),
+        (
+            "maps",
+            format!("{} × {}², density {}, {} agents", s.episodes, r.size, r.density, r.agents),
+        ),
+        ("success_rate", format!("{:.3}", s.success_rate)),
+        (
+            "makespan",
+            format!(
+                "{:.2} (lower bound {:.2}, ratio {:.3}; solved episodes)",
+                s.makespan, s.lower_bound, s.makespan_ratio
+            ),
+        ),
+        ("collisions", format!("{:.2} per episode", s.collisions)),
+        ("formation_loss", format!("{:.4} (sum of L_f over steps / map side)", s.formation_loss)),
+        ("final L_f", format!("{:.4}", s.final_formation_loss)),
+        ("rollouts", format!("{} (random action prob. {})", r.rollouts.count, r.rollouts.epsilon)),
+        ("decisions/s", format!("{:.0} ({:.2} s)", r.decisions_per_s, r.seconds)),
+    ])
+}

@@ -1,0 +1,202 @@
+//! Acting with a frozen network, for one episode or for many episodes in lockstep.
+//!
+//! One call of [`Policy::act_batch`] decides a step of every episode of the batch:
+//! 1. one recurrent step for all agents of all episodes (`Σ N_e` rows, one batched pass);
+//! 2. the head in leader order: at rank `k`, the agents ranked `k` of every episode go through
+//!    the head together, each with the message of the actions its team chose at ranks `0..k`;
+//! 3. ε-greedy among the allowed actions (a masked action is never chosen).
+//!
+//! Episodes may have different agent counts. The recurrent state of each episode is carried
+//! between calls; [`Policy::reset_envs`] clears the rows of episodes that start again.
+
+use burn::tensor::{Device, Int, Tensor, TensorData};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::env::ObsBuffers;
+use crate::learner::{MASKED_Q, masked_argmax, tensor3, to_vec};
+use crate::net::{QNet, QNetConfig, RecurrentState};
+
+/// A frozen Q-network that acts: batched recurrent step, then the head in leader order.
+#[derive(Clone, Debug)]
+pub struct Policy {
+    net: QNet,
+    config: QNetConfig,
+    device: Device,
+    state: Option<RecurrentState>,
+}
+
+impl Policy {
+    /// Wrap a network (normally without autodiff: `net.valid()`).
+    pub fn new(net: QNet, config: QNetConfig, device: &Device) -> Self {
+        Self { net, config, device: device.clone(), state: None }
+    }
+
+    /// The network sizes.
+    pub fn config(&self) -> &QNetConfig {
+        &self.config
+    }
+
+    /// Replace the weights, keeping the recurrent state (a learner's policy after an update).
+    pub fn set_net(&mut self, net: QNet) {
+        self.net = net;
+    }
+
+    /// Forget the recurrent state of every episode (call at the start of new episodes).
+    pub fn reset(&mut self) {
+        self.state = None;
+    }
+
+    /// Forget the recurrent state of the episodes `e` with `restart[e]`, keeping the others;
+    /// `agents[e]` is episode `e`'s agent count, as in the last [`Policy::act_batch`].
+    pub fn reset_envs(&mut self, agents: &[usize], restart: &[bool]) {
+        assert_eq!(agents.len(), restart.len(), "one flag per episode");
+        if restart.iter().all(|&it| it) {
+            self.state = None;
+            return;
+        }
+        let Some(state) = self.state.take() else { return };
+        let keep: Vec<f32> = agents
+            .iter()
+            .zip(restart)
+            .flat_map(|(&n, &reset)| std::iter::repeat_n(if reset { 0.0 } else { 1.0 }, n))
+            .collect();
+        let rows = keep.len();
+        let keep = Tensor::<2>::from_data(TensorData::new(keep, [rows, 1]), &self.device);
+        let layers = state
+            .layers
+            .into_iter()
+            .map(|(cell, hidden)| (cell * keep.clone(), hidden * keep.clone())) // [rows, H]
+            .collect();
+        self.state = Some(RecurrentState { layers });
+    }
+
+    /// Choose every agent's action for the current observation, ε-greedily among the allowed
+    /// actions, agents in `obs.order`. Writes `actions[agent_idx]`.
+    pub fn act(
+        &mut self,
+        obs: &ObsBuffers,
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+    ) {
+        let mut q = vec![0.0; obs.n_agents * self.config.n_actions];
+        self.act_with_q(obs, epsilon, rng, actions, &mut q);
+    }
+
+    /// [`Policy::act`] that also writes each agent's Q-values (`[N, A]`, row `agent_idx`, the
+    /// message being the actions chosen before it; masked actions hold [`MASKED_Q`]).
+    pub fn act_with_q(
+        &mut self,
+        obs: &ObsBuffers,
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+        q_out: &mut [f32],
+    ) {
+        self.act_batch(std::slice::from_ref(obs), epsilon, rng, actions, Some(q_out));
+    }
+
+    /// One step of every episode in `obs` (episode `e` has `obs[e].n_agents` agents).
+    /// `actions` is laid out episode after episode (`[Σ N_e]`, agent order within an
+    /// episode); `q_out`, when given, `[Σ N_e, A]` in the same order.
+    ///
+    /// Random draws happen rank by rank, episode by episode within a rank, so the result for a
+    /// seed depends only on the inputs.
+    ///
+    /// # Panics
+    /// If an episode has more agents than the network's slots, the buffers disagree with the
+    /// network, or the batch's agent counts differ from the last call's without a reset.
+    pub fn act_batch(
+        &mut self,
+        obs: &[ObsBuffers],
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+        mut q_out: Option<&mut [f32]>,
+    ) {
+        let cfg = &self.config;
+        let (fov, channels, n_actions, vec_dim) =
+            (cfg.fov, cfg.channels, cfg.n_actions, cfg.vec_dim());
+        let offsets: Vec<usize> = obs
+            .iter()
+            .scan(0, |next, env| {
+                let at = *next;
+                *next += env.n_agents;
+                Some(at)
+            })
+            .collect();
+        let rows: usize = obs.iter().map(|env| env.n_agents).sum();
+        assert_eq!(actions.len(), rows, "one action per agent");
+        if let Some(q) = &q_out {
+            assert_eq!(q.len(), rows * n_actions, "one Q row per agent");
+        }
+        let mut grid = Vec::with_capacity(rows * channels * fov * fov);
+        let mut vec = vec![0.0_f32; rows * vec_dim];
+        for (env, &offset) in obs.iter().zip(&offsets) {
+            assert!(env.n_agents <= cfg.n_agents_max, "more agents than the network's slots");
+            assert_eq!(env.shape.grid_len(), channels * fov * fov, "observation of another size");
+            assert_eq!(env.shape.env_vec, cfg.env_vec, "vector of another size");
+            grid.extend_from_slice(&env.grid);
+            for agent_idx in 0..env.n_agents {
+                let row =
+                    &mut vec[(offset + agent_idx) * vec_dim..(offset + agent_idx + 1) * vec_dim];
+                row[..cfg.env_vec].copy_from_slice(
+                    &env.vec[agent_idx * cfg.env_vec..(agent_idx + 1) * cfg.env_vec],
+                );
+                row[cfg.env_vec + agent_idx] = 1.0;
+            }
+        }
+        let grid = Tensor::<5>::from_data(
+            TensorData::new(grid, [rows, 1, channels, fov, fov]),
+            &self.device,
+        ); // [rows, 1, C, F, F]
+        let vec = tensor3(vec, [rows, 1, vec_dim], &self.device); // [rows, 1, V]
+        if let Some(state) = &self.state {
+            assert_eq!(state.layers[0].0.dims()[0], rows, "agent counts changed without a reset");
+        }
+        let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take()); // [rows, 1, H]
+        self.state = Some(state);
+
+        let msg_dim = cfg.message_dim();
+        let mut messages = vec![0.0_f32; obs.len() * msg_dim]; // [E, M], one per episode
+        let max_agents = obs.iter().map(|env| env.n_agents).max().unwrap_or(0);
+        for rank in 0..max_agents {
+            let acting: Vec<usize> = (0..obs.len()).filter(|&e| rank < obs[e].n_agents).collect();
+            let picked: Vec<i64> =
+                acting.iter().map(|&e| (offsets[e] + obs[e].order[rank]) as i64).collect();
+            let n = acting.len();
+            let picked = Tensor::<1, Int>::from_data(TensorData::new(picked, [n]), &self.device);
+            let feat = features.clone().select(0, picked); // [n, 1, H]
+            let msg: Vec<f32> = acting
+                .iter()
+                .flat_map(|&e| messages[e * msg_dim..(e + 1) * msg_dim].iter().copied())
+                .collect();
+            let msg = tensor3(msg, [n, 1, msg_dim], &self.device); // [n, 1, M]
+            let mut q_all = to_vec(self.net.head(feat, msg)); // [n, 1, A]
+            for (i, &e) in acting.iter().enumerate() {
+                let agent_idx = obs[e].order[rank];
+                let mask = obs[e].mask_of(agent_idx);
+                let q = &mut q_all[i * n_actions..(i + 1) * n_actions];
+                for (value, &ok) in q.iter_mut().zip(mask) {
+                    if !ok {
+                        *value = MASKED_Q;
+                    }
+                }
+                let action = if rng.random::<f64>() < epsilon {
+                    let allowed = mask.iter().filter(|&&ok| ok).count();
+                    let pick = rng.random_range(0..allowed);
+                    (0..n_actions).filter(|&a| mask[a]).nth(pick).expect("pick < allowed")
+                } else {
+                    masked_argmax(q, mask)
+                };
+                let row = offsets[e] + agent_idx;
+                actions[row] = action as u8;
+                if let Some(out) = q_out.as_deref_mut() {
+                    out[row * n_actions..(row + 1) * n_actions].copy_from_slice(q);
+                }
+                messages[e * msg_dim + agent_idx * n_actions + action] = 1.0;
+            }
+        }
+    }
+}
