@@ -1,8 +1,9 @@
 //! `phalanx train pathfinding|formation`: trains a low-level policy (VDN + double DQN, SPEC §6)
 //! on the training pool, with a progress bar on stderr, metrics appended as JSON lines to
 //! `DIR/metrics.jsonl` (one `{"name", "step", "value"}` object per value, names of
-//! `phalanx_rl::metrics`) and an atomic checkpoint `DIR/checkpoint` every N updates and at the
-//! end. `--resume` continues from `DIR/checkpoint`.
+//! `phalanx_rl::metrics`), an atomic checkpoint `DIR/checkpoint` with the policy file
+//! `DIR/policy.bin` beside it every N updates and at the end, and the training curves
+//! `DIR/curves.svg` redrawn at each checkpoint. `--resume` continues from `DIR/checkpoint`.
 //!
 //! The run's settings (`--config FILE`, JSON, every field optional) are written to
 //! `DIR/config.json`; a resumed run without `--config` reads them back from there.
@@ -22,6 +23,10 @@ use phalanx_rl::{Collector, Learner, LearnerConfig, PoolEnv, QNetConfig, Shaping
 use serde::{Deserialize, Serialize};
 
 use crate::{plot, util};
+
+/// The policy file (online network only, what `phalanx eval` and `models/` use) written
+/// beside each checkpoint.
+const POLICY: &str = "policy.bin";
 
 /// The training-curve plot written beside the metrics.
 const CURVES: &str = "curves.svg";
@@ -105,9 +110,12 @@ struct TrainConfig {
     /// The training pool.
     pool: PoolConfig,
     /// Weight of potential-based reward shaping towards the goals (a training aid that keeps
-    /// the optimal policies; see `phalanx_rl::Shaping`); default 1 for formation, 0 for
-    /// path finding (whose Table I reward already pays each step towards the goal).
+    /// the optimal policies; see `phalanx_rl::Shaping`): default 2 for formation, 0 for path
+    /// finding (whose Table I reward already pays each step towards the goal).
     shaping: Option<f32>,
+    /// Factor on the team reward seen by the learner (shaping included): default 0.05 for
+    /// formation (its `−k·L_f` per step is large), 1 for path finding.
+    reward_scale: Option<f32>,
 }
 
 impl Default for TrainConfig {
@@ -122,6 +130,7 @@ impl Default for TrainConfig {
             env: EnvConfig::default(),
             pool: PoolConfig::default(),
             shaping: None,
+            reward_scale: None,
         }
     }
 }
@@ -175,13 +184,17 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
 
     let task = cmd.task.task();
     let weight = config.shaping.unwrap_or(match task {
-        Task::Formation => 1.0,
+        Task::Formation => 2.0,
         Task::PathFinding | Task::Meta => 0.0,
     });
     let shaping = (weight != 0.0).then_some(Shaping { weight, gamma: learner.config().gamma });
     let first = PoolEnv::new(task, &config.pool, config.env.clone(), config.agent_counts[0])
         .with_context(|| format!("building the {:?} environment", cmd.task))?
-        .with_shaping(shaping);
+        .with_shaping(shaping)
+        .with_reward_scale(config.reward_scale.unwrap_or(match task {
+            Task::Formation => 0.05,
+            Task::PathFinding | Task::Meta => 1.0,
+        }));
     let counts = &config.agent_counts;
     let envs = (0..config.n_envs)
         .map(|e| first.with_agents(counts[e % counts.len()]))
@@ -258,12 +271,14 @@ fn train(
             last_saved = updates / every;
             sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
             learner.save(&checkpoint)?;
+            learner.save_policy(&dir.join(POLICY))?;
             plot_curves(dir);
         }
     }
     bar.finish_and_clear();
     sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
     learner.save(&checkpoint)?;
+    learner.save_policy(&dir.join(POLICY))?;
     plot_curves(dir);
 
     let counters = learner.counters();

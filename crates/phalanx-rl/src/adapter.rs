@@ -135,6 +135,7 @@ pub struct PoolEnv {
     inner: TaskEnv,
     pool: TrainPool,
     shaping: Option<Shaping>,
+    reward_scale: f32,
 }
 
 /// Potential-based reward shaping (Ng, Harada and Russell 1999), a training aid that leaves
@@ -164,7 +165,14 @@ impl PoolEnv {
         let inner = TaskEnv::new(task, env, n_agents)?;
         let pool = TrainPool::new(pool)?;
         assert!(!pool.is_empty(), "the training pool has no maps");
-        Ok(PoolEnv { inner, pool, shaping: None })
+        Ok(PoolEnv { inner, pool, shaping: None, reward_scale: 1.0 })
+    }
+
+    /// Multiply the team reward (shaping included) by `scale`, a training aid for tasks whose
+    /// rewards are large (formation: `−k·L_f` every step); greedy policies do not change.
+    pub fn with_reward_scale(mut self, scale: f32) -> PoolEnv {
+        self.reward_scale = scale;
+        self
     }
 
     /// Add potential-based reward shaping to the team reward (see [`Shaping`]).
@@ -185,7 +193,8 @@ impl PoolEnv {
     /// If `n_agents` is 0.
     pub fn with_agents(&self, n_agents: usize) -> Result<PoolEnv, EnvError> {
         let inner = TaskEnv::new(self.inner.task, self.inner.env.config().clone(), n_agents)?;
-        Ok(PoolEnv { inner, pool: self.pool.clone(), shaping: self.shaping })
+        let (shaping, reward_scale) = (self.shaping, self.reward_scale);
+        Ok(PoolEnv { inner, pool: self.pool.clone(), shaping, reward_scale })
     }
 
     /// The simulator (positions, goals, time of the running episode).
@@ -219,13 +228,13 @@ impl MarlEnv for PoolEnv {
     }
 
     fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
-        let Some(Shaping { weight, gamma }) = self.shaping else {
-            return self.inner.step(actions, obs);
-        };
         let before = self.potential();
         let mut out = self.inner.step(actions, obs);
-        let after = if out.terminated { 0.0 } else { self.potential() };
-        out.team_reward += weight * (gamma * after - before);
+        if let Some(Shaping { weight, gamma }) = self.shaping {
+            let after = if out.terminated { 0.0 } else { self.potential() };
+            out.team_reward += weight * (gamma * after - before);
+        }
+        out.team_reward *= self.reward_scale;
         out
     }
 }

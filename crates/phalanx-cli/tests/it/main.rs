@@ -177,6 +177,7 @@ fn train_writes_metrics_and_checkpoint_then_resumes() {
     let (stdout, _) = check(&phalanx(d, &args), 0);
     assert!(stdout.contains("env steps"), "{stdout}");
     assert!(d.join("run/checkpoint").is_file());
+    assert!(d.join("run/policy.bin").is_file());
     let curves = std::fs::read_to_string(d.join("run/curves.svg")).unwrap();
     assert!(curves.starts_with("<svg") && curves.contains("success rate"), "{curves:.200}");
     let first = read_metrics(&d.join("run/metrics.jsonl"));
