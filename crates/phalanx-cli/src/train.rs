@@ -116,6 +116,9 @@ struct TrainConfig {
     /// Factor on the team reward seen by the learner (shaping included): default 0.05 for
     /// formation (its `−k·L_f` per step is large), 1 for path finding.
     reward_scale: Option<f32>,
+    /// Warm start: initial weights from this checkpoint or policy file (same network), e.g.
+    /// the path-finding policy for formation training; ignored on resume.
+    init_from: Option<PathBuf>,
 }
 
 impl Default for TrainConfig {
@@ -131,6 +134,7 @@ impl Default for TrainConfig {
             pool: PoolConfig::default(),
             shaping: None,
             reward_scale: None,
+            init_from: None,
         }
     }
 }
@@ -160,13 +164,17 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
                 "agent count {n} must be between 1 and the network's n_agents_max {max}"
             );
         }
-        Learner::new(
+        let mut learner = Learner::new(
             config.net.clone(),
             config.learner.clone(),
             &config.agent_counts,
             cmd.seed,
             &device,
-        )
+        );
+        if let Some(path) = &config.init_from {
+            learner.init_from(path).context("warm start (init_from)")?;
+        }
+        learner
     };
     if learner.agent_counts() != config.agent_counts {
         util::warn(&format!(

@@ -177,6 +177,27 @@ impl Learner {
     }
 }
 
+impl Learner {
+    /// Start from the online network of a checkpoint or policy file (a warm start: both
+    /// networks take its weights), keeping this learner's optimiser, counters and RNG.
+    ///
+    /// # Errors
+    /// If the file cannot be read or holds another network.
+    pub fn init_from(&mut self, path: &Path) -> Result<(), CheckpointError> {
+        let file = read_file(path)?;
+        if file.header.net_config != self.net_config {
+            return Err(CheckpointError::ConfigMismatch {
+                path: path.to_path_buf(),
+                expected: Box::new(self.net_config.clone()),
+                found: Box::new(file.header.net_config),
+            });
+        }
+        self.online = apply(self.online.clone(), &file.online, path, "online")?;
+        self.target = self.online.valid();
+        Ok(())
+    }
+}
+
 /// Load only the acting policy (online network) of a checkpoint or policy file, checking that
 /// its network is `expected`; `device` should be a plain (non-autodiff) device.
 pub fn load_policy(

@@ -92,6 +92,24 @@ fn policy_file_acts_like_the_learner_and_cannot_resume() {
     }
 }
 
+#[test]
+fn warm_start_takes_the_weights_only() {
+    let device = crate::train_device();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("policy.bin");
+    let trained = trained_learner(&device);
+    trained.save_policy(&path).unwrap();
+    let mut fresh = Learner::new(corridor_net(), corridor_learner(), &[2], 1, &device);
+    assert_ne!(q_values(&fresh), q_values(&trained));
+    fresh.init_from(&path).unwrap();
+    assert_eq!(q_values(&fresh), q_values(&trained));
+    assert_eq!(fresh.counters(), phalanx_rl::Counters::default());
+    let other = QNetConfig { lstm_hidden: 8, ..corridor_net() };
+    let mut mismatched = Learner::new(other, corridor_learner(), &[2], 1, &device);
+    let err = mismatched.init_from(&path).unwrap_err();
+    assert!(matches!(err, CheckpointError::ConfigMismatch { .. }), "{err}");
+}
+
 fn file_len(path: &Path) -> u64 {
     std::fs::metadata(path).unwrap().len()
 }
