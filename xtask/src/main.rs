@@ -66,7 +66,8 @@ fn deps() -> anyhow::Result<()> {
 }
 
 /// Generates an instance, inspects it, solves it with CBS and SWARM-MAPF, validates the
-/// plans and runs the simulator, all under `out/demo/`.
+/// plans and runs the simulator, all under `out/demo/`, then evaluates the shipped policies
+/// on fresh maps.
 fn demo() -> anyhow::Result<()> {
     let root = xtask::workspace_root();
     let status = Command::new(env!("CARGO"))
@@ -97,7 +98,7 @@ fn demo_steps(instance: &Path, out: &Path) -> Vec<Vec<String>> {
     let inst = instance.display().to_string();
     let plan = |planner: &str| out.join(format!("plan-{planner}.yaml")).display().to_string();
     let (cbs, swarm) = (plan("cbs"), plan("swarm"));
-    let steps: [&[&str]; 8] = [
+    let steps: [&[&str]; 10] = [
         &["gen", "--size", "32", "--density", "0.15", "--agents", "3", "--seed", "1", "-o", &inst],
         &["info", &inst],
         &["solve", &inst, "--planner", "cbs", "-o", &cbs],
@@ -106,6 +107,8 @@ fn demo_steps(instance: &Path, out: &Path) -> Vec<Vec<String>> {
         &["validate", &inst, &swarm],
         &["sim", &inst, "--policy", "greedy"],
         &["sim", &inst, "--policy", &format!("plan:{swarm}")],
+        &["eval", "--policy", "pathfinding", "--maps", "20", "--size", "32"],
+        &["eval", "--policy", "formation", "--maps", "20", "--agents", "3"],
     ];
     steps.iter().map(|args| args.iter().map(|&a| a.to_string()).collect()).collect()
 }

@@ -275,3 +275,21 @@ fn train_bad_config_exits_2_naming_the_file() {
     assert!(stderr.contains("checkpoint"), "{stderr}");
     assert!(!d.join("run").exists(), "nothing written on bad input");
 }
+
+#[test]
+fn eval_finds_the_shipped_models() {
+    let dir = tempfile::tempdir().unwrap();
+    for policy in ["pathfinding", "formation"] {
+        let args = ["eval", "--policy", policy, "--maps", "10", "--size", "20", "--json"];
+        let (stdout, _) = check(&phalanx(dir.path(), &args), 0);
+        let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        let weights = report["weights"].as_str().unwrap();
+        let expected = Path::new("models").join(policy).join("policy.bin");
+        assert!(weights.ends_with(expected.to_str().unwrap()), "{weights}");
+        if policy == "pathfinding" {
+            // A guard against shipping a broken model: the shipped one solves about 0.9.
+            let success = report["success_rate"].as_f64().unwrap();
+            assert!(success >= 0.7, "shipped path-finding policy: success {success}");
+        }
+    }
+}
