@@ -77,50 +77,39 @@ fn epsilon_decays_linearly() {
     assert_eq!(schedule.value(1000), 0.1);
 }
 
-/// Losses of a short training run on the corridor.
-fn short_run_losses(seed: u64) -> Vec<f64> {
+/// TD losses of a short training run on `n_envs` corridors in lockstep.
+fn td_losses(config: LearnerConfig, seed: u64, steps: u64, n_envs: usize) -> Vec<f64> {
     let device = crate::train_device();
-    let mut config = corridor_learner();
-    config.learning_starts = 4;
     let mut learner = Learner::new(corridor_net(), config, &[2], seed, &device);
     let mut losses = Vec::new();
-    learner.train(
-        &mut Collector::new(vec![Corridor::new()], 10),
-        200,
-        &mut |name: &'static str, _step, value| {
-            if name == phalanx_rl::metrics::TD_LOSS {
-                losses.push(value);
-            }
-        },
-    );
+    let envs = (0..n_envs).map(|_| Corridor::new()).collect();
+    learner.train(&mut Collector::new(envs, 10), steps, &mut |name: &'static str, _, value| {
+        if name == phalanx_rl::metrics::TD_LOSS {
+            losses.push(value);
+        }
+    });
     losses
 }
 
 #[test]
-fn same_seed_same_losses() {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let (first, second) = pool.install(|| (short_run_losses(5), short_run_losses(5)));
+fn same_seed_same_losses_on_any_thread_count() {
+    let config = LearnerConfig { learning_starts: 4, ..corridor_learner() };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| td_losses(config.clone(), 5, 200, 3))
+    };
+    let first = run(1);
     assert!(first.len() >= 10, "only {} updates", first.len());
-    assert_eq!(first, second);
+    assert_eq!(first, run(1));
+    assert_eq!(first, run(2));
 }
 
 #[test]
 fn windows_with_burn_in_train() {
-    let device = crate::train_device();
     let mut config = corridor_learner();
     config.sequence = SequenceMode::Windows { len: 4, burn_in: 2 };
     config.learning_starts = 4;
-    let mut learner = Learner::new(corridor_net(), config, &[2], 3, &device);
-    let mut losses = Vec::new();
-    learner.train(
-        &mut Collector::new(vec![Corridor::new()], 10),
-        150,
-        &mut |name: &'static str, _step, value| {
-            if name == phalanx_rl::metrics::TD_LOSS {
-                losses.push(value);
-            }
-        },
-    );
+    let losses = td_losses(config, 3, 150, 1);
     assert!(losses.len() >= 10, "only {} updates", losses.len());
     assert!(losses.iter().all(|it| it.is_finite()));
 }
