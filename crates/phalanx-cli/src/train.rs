@@ -109,9 +109,10 @@ struct TrainConfig {
     env: EnvConfig,
     /// The training pool.
     pool: PoolConfig,
-    /// Weight of potential-based reward shaping towards the goals (a training aid that keeps
-    /// the optimal policies; see `phalanx_rl::Shaping`): default 2 for formation, 0 for path
-    /// finding (whose Table I reward already pays each step towards the goal).
+    /// Weight of the goal-progress bonus (`phalanx_rl::Shaping` with γ = 1: `weight` per unit
+    /// of BFS distance an agent gains towards its goal, the same taken for each unit lost):
+    /// default 5 for formation, 0 for path finding (whose Table I reward already pays each
+    /// step towards the goal).
     shaping: Option<f32>,
     /// Factor on the team reward seen by the learner (shaping included): default 0.05 for
     /// formation (its `−k·L_f` per step is large), 1 for path finding.
@@ -192,10 +193,10 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
 
     let task = cmd.task.task();
     let weight = config.shaping.unwrap_or(match task {
-        Task::Formation => 2.0,
+        Task::Formation => 5.0,
         Task::PathFinding | Task::Meta => 0.0,
     });
-    let shaping = (weight != 0.0).then_some(Shaping { weight, gamma: learner.config().gamma });
+    let shaping = (weight != 0.0).then_some(Shaping { weight, gamma: 1.0 });
     let first = PoolEnv::new(task, &config.pool, config.env.clone(), config.agent_counts[0])
         .with_context(|| format!("building the {:?} environment", cmd.task))?
         .with_shaping(shaping)

@@ -138,10 +138,17 @@ pub struct PoolEnv {
     reward_scale: f32,
 }
 
-/// Potential-based reward shaping (Ng, Harada and Russell 1999), a training aid that leaves
-/// the optimal policies unchanged: each step adds `weight · (γ Φ(s') − Φ(s))` to the team
-/// reward, with `Φ(s) = −Σ_i d_i(s)` (the agents' BFS distances to their goals) and `Φ = 0`
-/// in a terminal state.
+/// Reward shaping towards the goals, a training aid: each step adds
+/// `weight · (γ Φ(s') − Φ(s))` to the team reward, with `Φ(s) = −Σ_i d_i(s)` (the agents'
+/// BFS distances to their goals).
+///
+/// - `gamma` = the learner's γ, with `Φ = 0` in a terminal state: potential-based shaping
+///   (Ng, Harada and Russell 1999), which leaves the optimal policies unchanged; it only helps
+///   where the task's own reward already favours the goals, and pays `weight (1 − γ) Σ d` for
+///   waiting far from them.
+/// - `gamma` = 1: a goal-progress bonus, `weight` per unit of distance an agent gains (and the
+///   same taken for each unit lost), nothing for waiting: it biases the policy towards the
+///   goals (in formation training the goals are a placement of the target formation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shaping {
     /// Scale of the shaping term.
@@ -231,7 +238,8 @@ impl MarlEnv for PoolEnv {
         let before = self.potential();
         let mut out = self.inner.step(actions, obs);
         if let Some(Shaping { weight, gamma }) = self.shaping {
-            let after = if out.terminated { 0.0 } else { self.potential() };
+            let potential_based = gamma < 1.0;
+            let after = if out.terminated && potential_based { 0.0 } else { self.potential() };
             out.team_reward += weight * (gamma * after - before);
         }
         out.team_reward *= self.reward_scale;
