@@ -87,7 +87,8 @@ struct Report<'a> {
     summary: EvalSummary,
     /// Wall seconds of the episodes (policy and environment).
     seconds: f64,
-    /// Agent decisions per second (agents × steps / seconds), batched inference.
+    /// Agent decisions per second (agents × steps / seconds, batched inference); with several
+    /// rollouts, the decisions of the kept rollouts over the time of all of them.
     decisions_per_s: f64,
 }
 
