@@ -235,9 +235,9 @@ impl MarlEnv for PoolEnv {
     }
 
     fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
-        let before = self.potential();
+        let before = self.shaping.map(|_| self.potential());
         let mut out = self.inner.step(actions, obs);
-        if let Some(Shaping { weight, gamma }) = self.shaping {
+        if let (Some(Shaping { weight, gamma }), Some(before)) = (self.shaping, before) {
             let potential_based = gamma < 1.0;
             let after = if out.terminated && potential_based { 0.0 } else { self.potential() };
             out.team_reward += weight * (gamma * after - before);

@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use crate::adapter::TaskEnv;
 use crate::env::ObsBuffers;
-use crate::policy::Policy;
+use crate::policy::{Policy, row_offsets};
 
 /// What one evaluated episode measured.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -129,15 +129,14 @@ fn play(
         envs.push(task_env);
         obs.push(buffers);
     }
-    let agents: Vec<usize> = chunk.iter().map(Instance::n_agents).collect();
+    let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
     let mut running: Vec<bool> = episodes.iter().map(|it| !it.success).collect();
-    let mut actions = vec![0_u8; agents.iter().sum()];
+    let mut actions = vec![0_u8; chunk.iter().map(Instance::n_agents).sum()];
     policy.reset();
     while running.contains(&true) {
         policy.act_batch(&obs, epsilon, rng, &mut actions, None);
-        let mut at = 0;
         for (e, task_env) in envs.iter_mut().enumerate() {
-            let n = agents[e];
+            let (at, n) = (offsets[e], chunk[e].n_agents());
             if running[e] {
                 let out = task_env.step(&actions[at..at + n], &mut obs[e]);
                 let episode = &mut episodes[e];
@@ -149,7 +148,6 @@ fn play(
                 episode.success = out.terminated;
                 running[e] = !(out.terminated || out.truncated);
             }
-            at += n;
         }
     }
     for (episode, instance) in episodes.iter_mut().zip(chunk) {

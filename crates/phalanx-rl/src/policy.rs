@@ -118,14 +118,7 @@ impl Policy {
         let cfg = &self.config;
         let (fov, channels, n_actions, vec_dim) =
             (cfg.fov, cfg.channels, cfg.n_actions, cfg.vec_dim());
-        let offsets: Vec<usize> = obs
-            .iter()
-            .scan(0, |next, env| {
-                let at = *next;
-                *next += env.n_agents;
-                Some(at)
-            })
-            .collect();
+        let offsets = row_offsets(obs.iter().map(|env| env.n_agents));
         let rows: usize = obs.iter().map(|env| env.n_agents).sum();
         assert_eq!(actions.len(), rows, "one action per agent");
         if let Some(q) = &q_out {
@@ -199,4 +192,16 @@ impl Policy {
             }
         }
     }
+}
+
+/// Where each episode's agents start in a batch laid out episode after episode: the running
+/// sum of the agent counts before it.
+pub(crate) fn row_offsets(agent_counts: impl Iterator<Item = usize>) -> Vec<usize> {
+    agent_counts
+        .scan(0, |next, n| {
+            let at = *next;
+            *next += n;
+            Some(at)
+        })
+        .collect()
 }

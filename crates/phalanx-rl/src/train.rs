@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use crate::env::{MarlEnv, ObsBuffers, StepOut};
 use crate::learner::Learner;
-use crate::policy::Policy;
+use crate::policy::{Policy, row_offsets};
 use crate::replay::Episode;
 
 /// Metric names (CleanRL style namespaces).
@@ -116,14 +116,7 @@ impl<E: MarlEnv + Send> Collector<E> {
         let obs: Vec<ObsBuffers> =
             envs.iter().map(|env| ObsBuffers::new(env.n_agents(), env.obs_shape())).collect();
         let agents: Vec<usize> = envs.iter().map(MarlEnv::n_agents).collect();
-        let offsets = agents
-            .iter()
-            .scan(0, |next, &n| {
-                let at = *next;
-                *next += n;
-                Some(at)
-            })
-            .collect();
+        let offsets = row_offsets(agents.iter().copied());
         let total = agents.iter().sum();
         Self {
             obs,
