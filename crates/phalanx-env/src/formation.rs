@@ -10,14 +10,19 @@ use crate::EnvError;
 /// Placements tried before [`formation_instance`] gives up.
 pub const MAX_PLACEMENT_ATTEMPTS: u32 = 1000;
 
+/// How far (cells, in each axis) the target layout's centre may lie from the team's.
+const JITTER: i32 = 1;
+
 /// A formation-training instance on `grid` (run it with [`crate::Task::Formation`]):
 ///
 /// - agent 0 stands on a uniformly drawn free cell; agent `i > 0` on a free, unused cell
 ///   drawn uniformly in the `fov × fov` window of a uniformly drawn earlier agent, so every
 ///   agent sees at least one other;
 /// - the target formation is `n_agents` distinct cells drawn uniformly in an `s × s` square,
-///   `s = max(fov / 2 + 1, ⌈√n_agents⌉)`, placed at a uniformly drawn offset near agent 0;
-///   its cells are the goals (agent `i` gets cell `i`), all free and reachable;
+///   `s = max(fov / 2 + 1, ⌈√n_agents⌉)`, placed on the team: its centroid on the agents'
+///   centroid (rounded), moved by up to one cell in each axis at random. Its cells are the
+///   goals (agent `i` gets cell `i`), all free and reachable. `L_f` ignores where the layout
+///   lies, so this is the placement a formation policy should reach: the nearest one;
 /// - the start is not already in formation (`L_f > 0`).
 ///
 /// # Panics
@@ -59,11 +64,23 @@ pub fn formation_instance(
         if !ok {
             continue;
         }
+        // The target layout, centred on the team (its centroid on the starts' centroid, up
+        // to rounding and a jitter of one cell): the loss ignores where the layout lies, so
+        // the goals are its nearest placement, the one a formation policy should reach.
         let cells = phalanx_gen::random_formation(side, n_agents, rng);
-        let reach = 2 * r + side as i32;
-        let (dx, dy) = (rng.random_range(-reach..=reach), rng.random_range(-reach..=reach));
-        let goals: Vec<Cell> =
-            cells.iter().map(|c| c.offset(starts[0].x + dx, starts[0].y + dy)).collect();
+        let centre = |cs: &[Cell]| {
+            let n = cs.len() as f64;
+            let sx: f64 = cs.iter().map(|c| f64::from(c.x)).sum();
+            let sy: f64 = cs.iter().map(|c| f64::from(c.y)).sum();
+            ((sx / n).round() as i32, (sy / n).round() as i32)
+        };
+        let (tx, ty) = centre(&starts);
+        let (fx, fy) = centre(&cells);
+        let (dx, dy) = (
+            tx - fx + rng.random_range(-JITTER..=JITTER),
+            ty - fy + rng.random_range(-JITTER..=JITTER),
+        );
+        let goals: Vec<Cell> = cells.iter().map(|c| c.offset(dx, dy)).collect();
         if goals.iter().any(|&g| grid.is_blocked(g)) || formation_loss(&starts, &goals) == 0.0 {
             continue;
         }

@@ -54,7 +54,7 @@ fn formation_episodes_see_a_neighbour_and_end_in_formation() {
             assert!(formation_loss(s, inst.goals()) > 0.0);
         }
     }
-    // Walking every agent to its goal ends the formation episode at L_f = 0 at the latest.
+    // Walking every agent to its goal ends the formation episode at L_f = 0 or at the limit.
     let inst = formation_instance(pool.map(0), 3, 9, &mut rng).unwrap();
     let mut env = Env::new(EnvConfig { task: Task::Formation, ..EnvConfig::default() }).unwrap();
     env.reset(&inst).unwrap();
@@ -65,8 +65,8 @@ fn formation_episodes_see_a_neighbour_and_end_in_formation() {
     let last = trajectory.at(trajectory.horizon());
     let ended_in_formation = formation_loss(last, inst.goals()) == 0.0;
     assert!(ended_in_formation || trajectory.horizon() == env.step_limit() as usize);
-    assert_eq!(
-        ended_in_formation,
+    // The episode ends at the first step in formation, never later.
+    assert!(
         (0..trajectory.horizon()).all(|t| formation_loss(trajectory.at(t), inst.goals()) > 0.0)
     );
 }
