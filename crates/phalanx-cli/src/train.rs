@@ -3,7 +3,9 @@
 //! `DIR/metrics.jsonl` (one `{"name", "step", "value"}` object per value, names of
 //! `phalanx_rl::metrics`), an atomic checkpoint `DIR/checkpoint` with the policy file
 //! `DIR/policy.bin` beside it every N updates and at the end, and the training curves
-//! `DIR/curves.svg` redrawn at each checkpoint. `--resume` continues from `DIR/checkpoint`.
+//! `DIR/curves.svg` redrawn at each checkpoint. `--resume` continues from `DIR/checkpoint`
+//! exactly as the run would have gone on: the checkpoint carries the replay buffers and the
+//! running episodes (`Learner::save_with_collection`).
 //!
 //! The run's settings (`--config FILE`, JSON, every field optional) are written to
 //! `DIR/config.json`; a resumed run without `--config` reads them back from there.
@@ -154,7 +156,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     }
     let device = Device::flex().autodiff();
     let checkpoint = dir.join("checkpoint");
-    let learner = if cmd.resume {
+    let mut learner = if cmd.resume {
         Learner::load(&checkpoint, &device).context("resuming")?
     } else {
         let max = config.net.n_agents_max;
@@ -210,7 +212,15 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         .collect::<Result<Vec<_>, _>>()
         .with_context(|| format!("building the {:?} environment", cmd.task))?;
     let step_limit = config.env.step_limit.unwrap_or(3 * config.pool.size) as usize;
-    let collector = Collector::new(envs, step_limit);
+    let mut collector = Collector::new(envs, step_limit);
+
+    if cmd.resume && !learner.restore_collection(&checkpoint, &mut collector).context("resuming")? {
+        util::warn(&format!(
+            "warning: {} has no collection state (an older or hand-made checkpoint): the replay \
+             buffers refill before training goes on",
+            checkpoint.display()
+        ));
+    }
     train(collector, learner, &config, dir, cmd.resume)
 }
 
@@ -279,14 +289,14 @@ fn train(
         if updates / every > last_saved {
             last_saved = updates / every;
             sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
-            learner.save(&checkpoint)?;
+            learner.save_with_collection(&checkpoint, &collector)?;
             learner.save_policy(&dir.join(POLICY))?;
             plot_curves(dir);
         }
     }
     bar.finish_and_clear();
     sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
-    learner.save(&checkpoint)?;
+    learner.save_with_collection(&checkpoint, &collector)?;
     learner.save_policy(&dir.join(POLICY))?;
     plot_curves(dir);
 

@@ -1,10 +1,12 @@
 //! Checkpoints: online and target networks, Adam state, counters, configs and the RNG state in
 //! one file, written atomically (temporary file in the same directory, then rename).
 //!
-//! Layout: the magic `PHXRLCK1`, then four sections, each a little-endian `u64` length and its
-//! bytes: the JSON header ([`Header`]), the online network, the target network (both burnpack
-//! records from burn's `ModuleRecord`) and the optimiser record.
-//! The replay buffer is not saved: a resumed run refills it before its first update.
+//! Layout: the magic `PHXRLCK1`, then four or five sections, each a little-endian `u64` length
+//! and its bytes: the JSON header ([`Header`]), the online network, the target network (both
+//! burnpack records from burn's `ModuleRecord`), the optimiser record and, when written by
+//! [`Learner::save_with_collection`], the collection state (JSON: every replay buffer's and
+//! running episode's reset seed and actions, see `resume.rs`), with which a resumed run
+//! continues exactly.
 //!
 //! A *policy file* ([`Learner::save_policy`], what `models/` ships) has the magic `PHXRLPL1`
 //! and two sections: the same JSON header and the online network. [`load_policy`] reads both
@@ -112,8 +114,18 @@ impl Learner {
         }
     }
 
-    /// Write the learner's state to `path` atomically.
+    /// Write the learner's state to `path` atomically (without the collection state: a run
+    /// resumed from it refills its replay buffers; see [`Learner::save_with_collection`]).
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        self.write_checkpoint(path, None)
+    }
+
+    /// The checkpoint's four sections, then `collection` as the fifth when given.
+    pub(crate) fn write_checkpoint(
+        &self,
+        path: &Path,
+        collection: Option<&[u8]>,
+    ) -> Result<(), CheckpointError> {
         let header = serde_json::to_vec_pretty(&self.header()).expect("header serialises");
         let record_err = |section| {
             move |err: burn::store::RecordError| CheckpointError::Record {
@@ -128,7 +140,9 @@ impl Learner {
             self.target.clone().into_record().into_bytes().map_err(record_err("target"))?;
         let optim = self.optim.into_bytes().map_err(record_err("optimizer"))?;
 
-        write_atomic(path, &sections(MAGIC, &[&header, &online, &target, &optim]))
+        let mut parts: Vec<&[u8]> = vec![&header, &online, &target, &optim];
+        parts.extend(collection);
+        write_atomic(path, &sections(MAGIC, &parts))
     }
 
     /// Write only what acting needs (the header and the online network) to `path`
@@ -225,6 +239,12 @@ pub fn load_policy_any(path: &Path, device: &Device) -> Result<(Policy, Header),
     Ok((load_policy(path, &header.net_config, device)?, header))
 }
 
+/// A checkpoint's header and collection state (`None` when it has none).
+pub(crate) fn read_collection(path: &Path) -> Result<(Header, Option<Vec<u8>>), CheckpointError> {
+    let file = read_file(path)?;
+    Ok((file.header, file.collection))
+}
+
 /// Read a checkpoint's header only.
 pub fn read_header(path: &Path) -> Result<Header, CheckpointError> {
     Ok(read_file(path)?.header)
@@ -237,6 +257,8 @@ struct File {
     target: Option<Vec<u8>>,
     /// `None` in a policy file.
     optim: Option<Vec<u8>>,
+    /// The collection state, when saved.
+    collection: Option<Vec<u8>>,
 }
 
 /// `magic`, then each section as a little-endian `u64` length and its bytes.
@@ -262,16 +284,20 @@ fn read_file(path: &Path) -> Result<File, CheckpointError> {
         path: path.to_path_buf(),
         reason: reason.into(),
     };
-    let (rest, n_sections) = if let Some(rest) = bytes.strip_prefix(MAGIC) {
-        (rest, 4)
+    // A checkpoint has four sections and an optional fifth; a policy file two.
+    let (rest, n_sections, optional) = if let Some(rest) = bytes.strip_prefix(MAGIC) {
+        (rest, 4, 1)
     } else if let Some(rest) = bytes.strip_prefix(POLICY_MAGIC) {
-        (rest, 2)
+        (rest, 2, 0)
     } else {
         return Err(malformed("bad magic (neither a checkpoint nor a policy file)"));
     };
-    let mut sections = Vec::with_capacity(n_sections);
+    let mut sections = Vec::with_capacity(n_sections + optional);
     let mut rest = rest;
-    for _ in 0..n_sections {
+    for i in 0..n_sections + optional {
+        if i >= n_sections && rest.is_empty() {
+            break;
+        }
         let (len, tail) = rest.split_first_chunk::<8>().ok_or_else(|| malformed("truncated"))?;
         let len = usize::try_from(u64::from_le_bytes(*len)).map_err(|_| malformed("too large"))?;
         if tail.len() < len {
@@ -293,7 +319,8 @@ fn read_file(path: &Path) -> Result<File, CheckpointError> {
     let online = sections.next().expect("at least two sections");
     let target = sections.next();
     let optim = sections.next();
-    Ok(File { header, online, target, optim })
+    let collection = sections.next();
+    Ok(File { header, online, target, optim, collection })
 }
 
 fn apply(

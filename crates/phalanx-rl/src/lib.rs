@@ -34,6 +34,7 @@ pub mod learner;
 pub mod net;
 pub mod policy;
 pub mod replay;
+mod resume;
 pub mod train;
 
 pub use adapter::{PoolEnv, Shaping, TaskEnv};

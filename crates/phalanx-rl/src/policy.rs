@@ -71,6 +71,51 @@ impl Policy {
         self.state = Some(RecurrentState { layers });
     }
 
+    /// The recurrent state carried between calls, per layer `(cell, hidden)`, each `[rows, H]`
+    /// row-major (rows as in the last [`Policy::act_batch`]); `None` when it is all zeros.
+    pub(crate) fn recurrent_state(&self) -> Option<Vec<(Vec<f32>, Vec<f32>)>> {
+        let state = self.state.as_ref()?;
+        Some(state.layers.iter().map(|(c, h)| (to_vec(c.clone()), to_vec(h.clone()))).collect())
+    }
+
+    /// Restore a state from [`Policy::recurrent_state`].
+    ///
+    /// # Errors
+    /// When the layers or their sizes do not fit the network.
+    pub(crate) fn set_recurrent_state(
+        &mut self,
+        layers: Option<Vec<(Vec<f32>, Vec<f32>)>>,
+    ) -> Result<(), String> {
+        let Some(layers) = layers else {
+            self.state = None;
+            return Ok(());
+        };
+        let hidden = self.config.lstm_hidden;
+        if layers.len() != self.config.lstm_layers {
+            return Err(format!(
+                "{} recurrent layers, the network has {}",
+                layers.len(),
+                self.config.lstm_layers
+            ));
+        }
+        let mut res = Vec::with_capacity(layers.len());
+        for (cell, h) in layers {
+            let rows = cell.len() / hidden;
+            if cell.len() != rows * hidden || h.len() != cell.len() {
+                return Err(format!(
+                    "recurrent state of {} and {} values, not rows of {hidden}",
+                    cell.len(),
+                    h.len()
+                ));
+            }
+            let tensor =
+                |data| Tensor::<2>::from_data(TensorData::new(data, [rows, hidden]), &self.device);
+            res.push((tensor(cell), tensor(h)));
+        }
+        self.state = Some(RecurrentState { layers: res });
+        Ok(())
+    }
+
     /// Choose every agent's action for the current observation, ε-greedily among the allowed
     /// actions, agents in `obs.order`. Writes `actions[agent_idx]`.
     pub fn act(

@@ -13,7 +13,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::env::{ObsBuffers, ObsShape};
+use crate::env::{MarlEnv, ObsBuffers, ObsShape};
 
 /// How training sequences are cut from episodes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -52,6 +52,9 @@ pub struct Episode {
     pub rewards: Vec<f32>,
     /// Whether the last step terminated the episode (otherwise it was truncated).
     pub terminated: bool,
+    /// The seed its environment was reset with, when known: with the actions, all a
+    /// checkpoint needs to rebuild the episode ([`Episode::replay`]).
+    pub seed: Option<u64>,
 }
 
 impl Episode {
@@ -60,6 +63,64 @@ impl Episode {
         let mut res = Self { n_agents: obs.n_agents, ..Self::default() };
         res.push_obs(obs);
         res
+    }
+
+    /// Rebuild an episode from its seed and joint actions (`[T, N]`) by playing them again in
+    /// `env` (environments are deterministic), leaving `env` and `obs` where the episode left
+    /// them; returns the episode and its cancelled moves. `ended` says whether the episode
+    /// finished (it then ended at its last step: terminated, truncated, or cut at
+    /// `max_steps`) or is still running.
+    ///
+    /// # Errors
+    /// When the actions do not fit the environment: a masked action, an end before the last
+    /// step, or an episode said to have ended that did not (so not this environment's episode).
+    pub fn replay<E: MarlEnv>(
+        env: &mut E,
+        obs: &mut ObsBuffers,
+        seed: u64,
+        actions: &[u8],
+        ended: bool,
+        max_steps: usize,
+    ) -> Result<(Episode, u64), String> {
+        let n = env.n_agents();
+        if actions.len() % n != 0 {
+            return Err(format!("{} actions do not make joint actions of {n}", actions.len()));
+        }
+        env.reset(seed, obs);
+        let mut episode = Episode { seed: Some(seed), ..Episode::start(obs) };
+        let mut collisions = 0;
+        let steps = actions.len() / n;
+        let mut end = None;
+        for (t, joint) in actions.chunks(n).enumerate() {
+            if end.is_some() {
+                return Err(format!("the episode ended at step {t} of {steps}"));
+            }
+            let masked = joint.iter().enumerate().position(|(agent, &a)| {
+                !obs.action_mask
+                    .get(agent * obs.shape.n_actions + a as usize)
+                    .copied()
+                    .unwrap_or(false)
+            });
+            if let Some(agent) = masked {
+                return Err(format!(
+                    "step {t}: agent {agent}'s action {} is not allowed",
+                    joint[agent]
+                ));
+            }
+            let out = env.step(joint, obs);
+            episode.push_step(joint, out.team_reward, obs);
+            collisions += u64::from(out.collisions);
+            if out.terminated || out.truncated || episode.len >= max_steps {
+                end = Some(out.terminated);
+            }
+        }
+        match (ended, end) {
+            (true, Some(terminated)) => episode.terminated = terminated,
+            (false, None) => {}
+            (true, None) => return Err(format!("the episode did not end after {steps} steps")),
+            (false, Some(_)) => return Err(format!("the episode ended at step {steps}")),
+        }
+        Ok((episode, collisions))
     }
 
     /// Record one step: the joint action, its reward, and the observation it led to.
@@ -216,6 +277,11 @@ impl Replay {
             self.episodes.pop_front();
         }
         self.episodes.push_back(episode);
+    }
+
+    /// Drop every episode.
+    pub fn clear(&mut self) {
+        self.episodes.clear();
     }
 
     /// Sample `batch` sequences uniformly over episodes (windows: uniform start within the

@@ -68,7 +68,7 @@ pub fn run_episode<E: MarlEnv>(
         true
     });
     policy.reset();
-    let mut episode = Episode::start(obs);
+    let mut episode = Episode { seed: Some(seed), ..Episode::start(obs) };
     let mut actions = vec![0_u8; env.n_agents()];
     for step in 0..max_steps {
         policy.act(obs, epsilon(step), rng, &mut actions);
@@ -91,19 +91,19 @@ pub fn run_episode<E: MarlEnv>(
 /// The collector lives across [`Learner::train`] calls, so a run split into chunks (for
 /// checkpoints) continues its episodes.
 pub struct Collector<E: MarlEnv> {
-    envs: Vec<E>,
-    obs: Vec<ObsBuffers>,
-    agents: Vec<usize>,
+    pub(crate) envs: Vec<E>,
+    pub(crate) obs: Vec<ObsBuffers>,
+    pub(crate) agents: Vec<usize>,
     offsets: Vec<usize>,
-    running: Vec<Episode>,
-    collisions: Vec<u64>,
+    pub(crate) running: Vec<Episode>,
+    pub(crate) collisions: Vec<u64>,
     actions: Vec<u8>,
     restart: Vec<bool>,
-    policy: Option<Policy>,
+    pub(crate) policy: Option<Policy>,
     /// The learner's update count the policy's weights come from.
-    weights_of: u64,
-    max_steps: usize,
-    since_update: u64,
+    pub(crate) weights_of: u64,
+    pub(crate) max_steps: usize,
+    pub(crate) since_update: u64,
 }
 
 impl<E: MarlEnv + Send> Collector<E> {
@@ -197,8 +197,9 @@ impl Learner {
         let c = collector;
         if c.running.is_empty() {
             for (env, obs) in c.envs.iter_mut().zip(&mut c.obs) {
-                env.reset(self.rng.random::<u64>(), obs);
-                c.running.push(Episode::start(obs));
+                let seed = self.rng.random::<u64>();
+                env.reset(seed, obs);
+                c.running.push(Episode { seed: Some(seed), ..Episode::start(obs) });
             }
             c.policy = None;
         }
@@ -240,8 +241,10 @@ impl Learner {
             sink.record(metrics::COLLISIONS, now, std::mem::take(&mut c.collisions[e]) as f64);
             sink.record(metrics::SUCCESS, now, if out.terminated { 1.0 } else { 0.0 });
             sink.record(metrics::EPSILON, now, epsilon);
-            c.envs[e].reset(self.rng.random::<u64>(), &mut c.obs[e]);
-            let finished = std::mem::replace(episode, Episode::start(&c.obs[e]));
+            let seed = self.rng.random::<u64>();
+            c.envs[e].reset(seed, &mut c.obs[e]);
+            let started = Episode { seed: Some(seed), ..Episode::start(&c.obs[e]) };
+            let finished = std::mem::replace(episode, started);
             self.counters.episodes += 1;
             self.store(finished);
         }

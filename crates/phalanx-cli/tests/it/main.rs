@@ -220,6 +220,14 @@ fn train_with_updates_then_resume_continues() {
     let (stdout, _) = check(&phalanx(d, &args), 0);
     assert!(summary_value(&stdout, "updates") > first, "{stdout}");
     assert!(summary_value(&stdout, "env steps") >= 140, "{stdout}");
+    // Exactly where it left off: the same metrics as a run that never stopped (timings aside).
+    let args = ["train", "formation", "--config", "cfg.json", "--steps", "140", "--out", "whole"];
+    check(&phalanx(d, &args), 0);
+    let learning = |dir: &str| {
+        let text = std::fs::read_to_string(d.join(dir).join("metrics.jsonl")).unwrap();
+        text.lines().filter(|line| !line.contains("\"perf/")).map(str::to_owned).collect::<Vec<_>>()
+    };
+    assert_eq!(learning("run"), learning("whole"));
 
     // The run directory evaluates on fresh maps, for either team size.
     for agents in ["2", "3"] {

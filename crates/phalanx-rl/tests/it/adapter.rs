@@ -103,3 +103,39 @@ fn learner_trains_on_path_finding_with_mixed_team_sizes() {
     assert_eq!(stored.iter().map(|it| it.0).collect::<Vec<_>>(), [3, 4]);
     assert!(stored.iter().all(|it| it.1 > 0), "episodes per team size {stored:?}");
 }
+
+#[test]
+fn an_episode_is_rebuilt_from_its_seed_and_actions() {
+    let config = LearnerConfig { learning_starts: 1000, ..LearnerConfig::default() };
+    let device = crate::train_device();
+    let mut learner = Learner::new(QNetConfig::default(), config, &[3], 2, &device);
+    let env = PoolEnv::new(Task::Formation, &small_pool(), env_config(), 3)
+        .unwrap()
+        .with_shaping(Some(phalanx_rl::Shaping { weight: 5.0, gamma: 1.0 }));
+    let mut collector = Collector::new(vec![env.clone()], STEP_LIMIT as usize);
+    learner.train(&mut collector, 60, &mut |_: &'static str, _, _| {});
+    assert!(learner.replays()[0].len() >= 3);
+    let mut env = env;
+    let mut obs = ObsBuffers::new(3, env.obs_shape());
+    for stored in learner.replays()[0].episodes() {
+        let seed = stored.seed.expect("collected episodes know their seed");
+        let limit = STEP_LIMIT as usize;
+        let (rebuilt, _) =
+            phalanx_rl::Episode::replay(&mut env, &mut obs, seed, &stored.actions, true, limit)
+                .unwrap();
+        assert_eq!(rebuilt.grid, stored.grid);
+        assert_eq!(
+            (rebuilt.vec, rebuilt.action_mask),
+            (stored.vec.clone(), stored.action_mask.clone())
+        );
+        assert_eq!(
+            (rebuilt.rewards, rebuilt.order),
+            (stored.rewards.clone(), stored.order.clone())
+        );
+        assert_eq!(rebuilt.terminated, stored.terminated);
+        // Other actions are not this episode: the replay says so instead of inventing one.
+        let cut = &stored.actions[..stored.actions.len() - 3];
+        let err = phalanx_rl::Episode::replay(&mut env, &mut obs, seed, cut, true, limit);
+        assert!(err.unwrap_err().contains("did not end"));
+    }
+}

@@ -187,3 +187,54 @@ fn tensors_of_another_network_are_a_record_error() {
     assert!(matches!(err, CheckpointError::Record { section: "online", .. }), "{err}");
     assert!(err.to_string().contains("shape"), "{err}");
 }
+
+/// Non-timing metrics as `(name, step, value bits)`.
+type Log = Vec<(&'static str, u64, u64)>;
+
+fn logger(log: &mut Log) -> impl FnMut(&'static str, u64, f64) + '_ {
+    |name, step, value| {
+        if !name.starts_with("perf/") {
+            log.push((name, step, value.to_bits()));
+        }
+    }
+}
+
+#[test]
+fn a_resumed_run_continues_exactly() {
+    let device = crate::train_device();
+    let config = phalanx_rl::LearnerConfig { learning_starts: 2, ..corridor_learner() };
+    let fresh = || Learner::new(corridor_net(), config.clone(), &[2], 4, &device);
+    let envs = || Collector::new((0..3).map(|_| Corridor::new()).collect(), 10);
+
+    let (mut whole, mut parts) = (Log::new(), Log::new());
+    let (mut learner, mut collector) = (fresh(), envs());
+    learner.train(&mut collector, 90, &mut logger(&mut whole));
+    learner.train(&mut collector, 90, &mut logger(&mut whole));
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ckpt");
+    let (mut first, mut collector) = (fresh(), envs());
+    first.train(&mut collector, 90, &mut logger(&mut parts));
+    assert!(first.replays()[0].len() > 2, "the replay must hold episodes to restore");
+    first.save_with_collection(&path, &collector).unwrap();
+    drop(collector);
+    let mut second = Learner::load(&path, &device).unwrap();
+    let mut collector = envs();
+    assert!(second.restore_collection(&path, &mut collector).unwrap());
+    assert_eq!(second.replays()[0].len(), first.replays()[0].len());
+    second.train(&mut collector, 90, &mut logger(&mut parts));
+    assert!(whole.iter().any(|it| it.0 == phalanx_rl::metrics::TD_LOSS));
+    assert_eq!(whole, parts);
+
+    // A collector of other team sizes is refused, naming the file.
+    let mut learner = Learner::load(&path, &device).unwrap();
+    let mut other = Collector::new(vec![Corridor::new()], 10);
+    let err = learner.restore_collection(&path, &mut other).unwrap_err();
+    assert!(matches!(err, CheckpointError::Malformed { .. }), "{err}");
+    assert!(err.to_string().contains("ckpt"), "{err}");
+    // A checkpoint without collection state restores nothing.
+    first.save(&path).unwrap();
+    let mut learner = Learner::load(&path, &device).unwrap();
+    assert!(!learner.restore_collection(&path, &mut envs()).unwrap());
+    assert!(learner.replays()[0].is_empty());
+}
