@@ -67,7 +67,7 @@ impl Episode {
 
     /// Rebuild an episode from its seed and joint actions (`[T, N]`) by playing them again in
     /// `env` (environments are deterministic), leaving `env` and `obs` where the episode left
-    /// them; returns the episode and its cancelled moves. `ended` says whether the episode
+    /// them. `ended` says whether the episode
     /// finished (it then ended at its last step: terminated, truncated, or cut at
     /// `max_steps`) or is still running.
     ///
@@ -81,14 +81,13 @@ impl Episode {
         actions: &[u8],
         ended: bool,
         max_steps: usize,
-    ) -> Result<(Episode, u64), String> {
+    ) -> Result<Episode, String> {
         let n = env.n_agents();
-        if actions.len() % n != 0 {
+        if !actions.len().is_multiple_of(n) {
             return Err(format!("{} actions do not make joint actions of {n}", actions.len()));
         }
         env.reset(seed, obs);
         let mut episode = Episode { seed: Some(seed), ..Episode::start(obs) };
-        let mut collisions = 0;
         let steps = actions.len() / n;
         let mut end = None;
         for (t, joint) in actions.chunks(n).enumerate() {
@@ -109,7 +108,6 @@ impl Episode {
             }
             let out = env.step(joint, obs);
             episode.push_step(joint, out.team_reward, obs);
-            collisions += u64::from(out.collisions);
             if out.terminated || out.truncated || episode.len >= max_steps {
                 end = Some(out.terminated);
             }
@@ -120,7 +118,7 @@ impl Episode {
             (true, None) => return Err(format!("the episode did not end after {steps} steps")),
             (false, Some(_)) => return Err(format!("the episode ended at step {steps}")),
         }
-        Ok((episode, collisions))
+        Ok(episode)
     }
 
     /// Record one step: the joint action, its reward, and the observation it led to.

@@ -120,7 +120,7 @@ fn an_episode_is_rebuilt_from_its_seed_and_actions() {
     for stored in learner.replays()[0].episodes() {
         let seed = stored.seed.expect("collected episodes know their seed");
         let limit = STEP_LIMIT as usize;
-        let (rebuilt, _) =
+        let rebuilt =
             phalanx_rl::Episode::replay(&mut env, &mut obs, seed, &stored.actions, true, limit)
                 .unwrap();
         assert_eq!(rebuilt.grid, stored.grid);
