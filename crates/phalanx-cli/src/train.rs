@@ -113,7 +113,7 @@ struct TrainConfig {
     pool: PoolConfig,
     /// Weight of the goal-progress bonus (`phalanx_rl::Shaping` with γ = 1: `weight` per unit
     /// of BFS distance an agent gains towards its goal, the same taken for each unit lost):
-    /// default 5 for formation, 0 for path finding (whose Table I reward already pays each
+    /// default 20 for formation, 0 for path finding (whose Table I reward already pays each
     /// step towards the goal).
     shaping: Option<f32>,
     /// Factor on the team reward seen by the learner (shaping included): default 0.05 for
@@ -195,7 +195,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
 
     let task = cmd.task.task();
     let weight = config.shaping.unwrap_or(match task {
-        Task::Formation => 5.0,
+        Task::Formation => 20.0,
         Task::PathFinding | Task::Meta => 0.0,
     });
     let shaping = (weight != 0.0).then_some(Shaping { weight, gamma: 1.0 });
