@@ -22,7 +22,8 @@ const JITTER: i32 = 1;
 ///   `s = max(fov / 2 + 1, ⌈√n_agents⌉)`, placed on the team: its centroid on the agents'
 ///   centroid (rounded), moved by up to one cell in each axis at random. Its cells are the
 ///   goals (agent `i` gets cell `i`), all free and reachable. `L_f` ignores where the layout
-///   lies, so this is the placement a formation policy should reach: the nearest one;
+///   lies, so the goals mark a placement next to the team: the task is to reshape, not to
+///   travel;
 /// - the start is not already in formation (`L_f > 0`).
 ///
 /// # Panics
@@ -66,7 +67,7 @@ pub fn formation_instance(
         }
         // The target layout, centred on the team (its centroid on the starts' centroid, up
         // to rounding and a jitter of one cell): the loss ignores where the layout lies, so
-        // the goals are its nearest placement, the one a formation policy should reach.
+        // the goals mark a placement next to the team rather than a place to travel to.
         let cells = phalanx_gen::random_formation(side, n_agents, rng);
         let centre = |cs: &[Cell]| {
             let n = cs.len() as f64;

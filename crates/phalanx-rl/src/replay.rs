@@ -65,11 +65,17 @@ impl Episode {
         res
     }
 
+    /// Reset `env` with `seed` and start recording the episode it begins (remembering the
+    /// seed, see [`Episode::seed`]).
+    pub fn begin<E: MarlEnv>(env: &mut E, seed: u64, obs: &mut ObsBuffers) -> Self {
+        env.reset(seed, obs);
+        Self { seed: Some(seed), ..Self::start(obs) }
+    }
+
     /// Rebuild an episode from its seed and joint actions (`[T, N]`) by playing them again in
     /// `env` (environments are deterministic), leaving `env` and `obs` where the episode left
-    /// them. `ended` says whether the episode
-    /// finished (it then ended at its last step: terminated, truncated, or cut at
-    /// `max_steps`) or is still running.
+    /// them. `ended` says whether the episode finished (it then ended at its last step:
+    /// terminated, truncated, or cut at `max_steps`) or is still running.
     ///
     /// # Errors
     /// When the actions do not fit the environment: a masked action, an end before the last
@@ -86,8 +92,7 @@ impl Episode {
         if !actions.len().is_multiple_of(n) {
             return Err(format!("{} actions do not make joint actions of {n}", actions.len()));
         }
-        env.reset(seed, obs);
-        let mut episode = Episode { seed: Some(seed), ..Episode::start(obs) };
+        let mut episode = Episode::begin(env, seed, obs);
         let steps = actions.len() / n;
         let mut end = None;
         for (t, joint) in actions.chunks(n).enumerate() {
@@ -95,10 +100,7 @@ impl Episode {
                 return Err(format!("the episode ended at step {t} of {steps}"));
             }
             let masked = joint.iter().enumerate().position(|(agent, &a)| {
-                !obs.action_mask
-                    .get(agent * obs.shape.n_actions + a as usize)
-                    .copied()
-                    .unwrap_or(false)
+                !obs.mask_of(agent).get(usize::from(a)).copied().unwrap_or(false)
             });
             if let Some(agent) = masked {
                 return Err(format!(

@@ -62,13 +62,12 @@ pub fn run_episode<E: MarlEnv>(
     mut epsilon: impl FnMut(usize) -> f64,
     rng: &mut rand_chacha::ChaCha8Rng,
 ) -> Episode {
-    env.reset(seed, obs);
+    let mut episode = Episode::begin(env, seed, obs);
     debug_assert!({
         obs.check();
         true
     });
     policy.reset();
-    let mut episode = Episode { seed: Some(seed), ..Episode::start(obs) };
     let mut actions = vec![0_u8; env.n_agents()];
     for step in 0..max_steps {
         policy.act(obs, epsilon(step), rng, &mut actions);
@@ -197,9 +196,7 @@ impl Learner {
         let c = collector;
         if c.running.is_empty() {
             for (env, obs) in c.envs.iter_mut().zip(&mut c.obs) {
-                let seed = self.rng.random::<u64>();
-                env.reset(seed, obs);
-                c.running.push(Episode { seed: Some(seed), ..Episode::start(obs) });
+                c.running.push(Episode::begin(env, self.rng.random::<u64>(), obs));
             }
             c.policy = None;
         }
@@ -241,9 +238,7 @@ impl Learner {
             sink.record(metrics::COLLISIONS, now, std::mem::take(&mut c.collisions[e]) as f64);
             sink.record(metrics::SUCCESS, now, if out.terminated { 1.0 } else { 0.0 });
             sink.record(metrics::EPSILON, now, epsilon);
-            let seed = self.rng.random::<u64>();
-            c.envs[e].reset(seed, &mut c.obs[e]);
-            let started = Episode { seed: Some(seed), ..Episode::start(&c.obs[e]) };
+            let started = Episode::begin(&mut c.envs[e], self.rng.random::<u64>(), &mut c.obs[e]);
             let finished = std::mem::replace(episode, started);
             self.counters.episodes += 1;
             self.store(finished);
