@@ -70,8 +70,8 @@ pub(crate) struct TrainCmd {
     /// The policy to train.
     #[arg(value_enum)]
     task: TaskName,
-    /// Settings (JSON, every field optional): n_agents, steps, checkpoint_every, net, learner,
-    /// env, pool.
+    /// Settings (JSON, every field optional): agent_counts, n_envs, steps, checkpoint_every,
+    /// net, learner, env, pool, shaping, reward_scale, init_from (docs/learning.md).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Output directory: metrics.jsonl, checkpoint, config.json.
@@ -91,7 +91,9 @@ pub(crate) struct TrainCmd {
 
 /// Settings of a training run. Defaults: teams of 3, 16 environments in lockstep, 200 000
 /// steps, a checkpoint every 1000 updates, the default network and learner, the paper's
-/// environment and pool.
+/// environment and pool; formation training defaults to teams of 3, 4 and 5, 15 environments
+/// and a step limit of 64 (the shipped formation policy's settings, see
+/// [`TrainConfig::with_task_defaults`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 struct TrainConfig {
@@ -142,14 +144,35 @@ impl Default for TrainConfig {
     }
 }
 
+impl TrainConfig {
+    /// Fills the settings whose default depends on the task, where `given` (the config file's
+    /// JSON, `Null` without one) leaves them out: formation trains teams of 3, 4 and 5 in 15
+    /// environments (five of each) with episodes of at most 64 steps.
+    fn with_task_defaults(mut self, task: Task, given: &serde_json::Value) -> TrainConfig {
+        if task == Task::Formation {
+            if given.get("agent_counts").is_none() {
+                self.agent_counts = vec![3, 4, 5];
+            }
+            if given.get("n_envs").is_none() {
+                self.n_envs = 15;
+            }
+            if given.get("env").and_then(|env| env.get("step_limit")).is_none() {
+                self.env.step_limit = Some(64);
+            }
+        }
+        self
+    }
+}
+
 /// Runs `phalanx train`.
 pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     let dir = &cmd.out;
     let saved_config = dir.join("config.json");
+    let task = cmd.task.task();
     let mut config = match (&cmd.config, cmd.resume) {
-        (Some(path), _) => read_config(path)?,
-        (None, true) if saved_config.exists() => read_config(&saved_config)?,
-        (None, _) => TrainConfig::default(),
+        (Some(path), _) => read_config(path, task)?,
+        (None, true) if saved_config.exists() => read_config(&saved_config, task)?,
+        (None, _) => TrainConfig::default().with_task_defaults(task, &serde_json::Value::Null),
     };
     if let Some(steps) = cmd.steps {
         config.steps = steps;
@@ -193,7 +216,6 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     fs::write(&saved_config, json + "\n")
         .with_context(|| format!("writing {}", saved_config.display()))?;
 
-    let task = cmd.task.task();
     let weight = config.shaping.unwrap_or(match task {
         Task::Formation => 20.0,
         Task::PathFinding | Task::Meta => 0.0,
@@ -224,10 +246,15 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     train(collector, learner, &config, dir, cmd.resume)
 }
 
-fn read_config(path: &Path) -> anyhow::Result<TrainConfig> {
+/// Reads a config file; the fields it leaves out take their defaults for `task`.
+fn read_config(path: &Path, task: Task) -> anyhow::Result<TrainConfig> {
     let text =
         fs::read_to_string(path).with_context(|| format!("reading config {}", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("parsing config {}", path.display()))
+    let parse_error = || format!("parsing config {}", path.display());
+    // Typed first, so that errors name the line and the field.
+    let config: TrainConfig = serde_json::from_str(&text).with_context(parse_error)?;
+    let given: serde_json::Value = serde_json::from_str(&text).with_context(parse_error)?;
+    Ok(config.with_task_defaults(task, &given))
 }
 
 /// The collect/update loop with the progress bar, the metrics file and the checkpoints.
@@ -380,5 +407,27 @@ impl phalanx_rl::MetricSink for Sink {
         if let Err(err) = writeln!(self.out, "{line}") {
             self.err = Some(err);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formation_defaults_fill_only_what_the_file_leaves_out() {
+        let none = serde_json::Value::Null;
+        let formation = TrainConfig::default().with_task_defaults(Task::Formation, &none);
+        assert_eq!(formation.agent_counts, [3, 4, 5]);
+        assert_eq!((formation.n_envs, formation.env.step_limit), (15, Some(64)));
+        let path = TrainConfig::default().with_task_defaults(Task::PathFinding, &none);
+        assert_eq!(path, TrainConfig::default());
+
+        let text = r#"{"n_envs": 6, "env": {"step_limit": null}}"#;
+        let given: serde_json::Value = serde_json::from_str(text).unwrap();
+        let config: TrainConfig = serde_json::from_str(text).unwrap();
+        let config = config.with_task_defaults(Task::Formation, &given);
+        assert_eq!(config.agent_counts, [3, 4, 5]);
+        assert_eq!((config.n_envs, config.env.step_limit), (6, None));
     }
 }

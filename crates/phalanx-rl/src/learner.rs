@@ -48,7 +48,8 @@ impl EpsilonSchedule {
     }
 }
 
-/// Learner hyper-parameters. Defaults are the measured ones (see `docs/learning.md`);
+/// Learner hyper-parameters. Defaults are those both shipped policies were trained with (see
+/// `docs/learning.md`);
 /// [`LearnerConfig::paper`] is the paper's setting.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LearnerConfig {
@@ -61,17 +62,17 @@ pub struct LearnerConfig {
     /// Replay capacity in episodes (default 5000, as EPyMARL), split evenly between the
     /// agent counts trained.
     pub replay_capacity: usize,
-    /// How sequences are cut (default windows of 16 with burn-in 8; paper: whole episodes).
+    /// How sequences are cut (default windows of 12 with burn-in 4; paper: whole episodes).
     pub sequence: SequenceMode,
     /// Hard target update every this many updates (default 200).
     pub target_update_interval: u64,
-    /// Exploration schedule (default 1.0 → 0.05 over 50 000 environment steps).
+    /// Exploration schedule (default 1.0 → 0.05 over 30 000 environment steps).
     pub epsilon: EpsilonSchedule,
     /// Clip the global gradient norm to this value (default 10, as EPyMARL); `None`: no clip.
     pub grad_clip_norm: Option<f32>,
     /// Episodes in the replay buffer before the first update (default 32).
     pub learning_starts: usize,
-    /// Environment steps per update (default 4).
+    /// Environment steps per update (default 8).
     pub train_every: u64,
 }
 
@@ -82,12 +83,12 @@ impl Default for LearnerConfig {
             lr: 5e-4,
             batch_size: 32,
             replay_capacity: 5000,
-            sequence: SequenceMode::Windows { len: 16, burn_in: 8 },
+            sequence: SequenceMode::Windows { len: 12, burn_in: 4 },
             target_update_interval: 200,
-            epsilon: EpsilonSchedule { start: 1.0, end: 0.05, decay_steps: 50_000 },
+            epsilon: EpsilonSchedule { start: 1.0, end: 0.05, decay_steps: 30_000 },
             grad_clip_norm: Some(10.0),
             learning_starts: 32,
-            train_every: 4,
+            train_every: 8,
         }
     }
 }
