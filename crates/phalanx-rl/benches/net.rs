@@ -88,37 +88,41 @@ fn decision(c: &mut Criterion) {
             })
         });
     }
-    // The shipped path-finding policy, one agent per call, then 16 teams of 3 per call
+    // Each shipped policy, one agent per call; then 16 teams of 3 per call for path finding
     // (batched inference as in training and evaluation; the time is per call of 48 decisions).
-    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/pathfinding/policy.bin");
-    let (mut policy, header) =
-        load_policy_any(shipped.as_ref(), &device).expect("the shipped path-finding policy");
-    let config = header.net_config;
-    let mut rng = ChaCha8Rng::seed_from_u64(4);
-    let mut obs = ObsBuffers::new(1, obs_shape(&config));
-    random_obs(&mut obs, &mut rng);
-    let mut actions = [0_u8];
-    group.bench_function(BenchmarkId::new("shipped-pathfinding", "1"), |b| {
-        b.iter(|| {
-            policy.act(&obs, 0.0, &mut rng, &mut actions);
-            black_box(actions[0])
-        })
-    });
-    let teams: Vec<ObsBuffers> = (0..16)
-        .map(|_| {
-            let mut obs = ObsBuffers::new(3, obs_shape(&config));
-            random_obs(&mut obs, &mut rng);
-            obs
-        })
-        .collect();
-    let mut actions = vec![0_u8; 48];
-    policy.reset();
-    group.bench_function(BenchmarkId::new("shipped-pathfinding", "16x3"), |b| {
-        b.iter(|| {
-            policy.act_batch(&teams, 0.0, &mut rng, &mut actions, None);
-            black_box(actions[0])
-        })
-    });
+    for shipped in ["pathfinding", "formation"] {
+        let path = format!("{}/../../models/{shipped}/policy.bin", env!("CARGO_MANIFEST_DIR"));
+        let (mut policy, header) = load_policy_any(path.as_ref(), &device).expect(&path);
+        let config = header.net_config;
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let mut obs = ObsBuffers::new(1, obs_shape(&config));
+        random_obs(&mut obs, &mut rng);
+        let mut actions = [0_u8];
+        group.bench_function(BenchmarkId::new(format!("shipped-{shipped}"), "1"), |b| {
+            b.iter(|| {
+                policy.act(&obs, 0.0, &mut rng, &mut actions);
+                black_box(actions[0])
+            })
+        });
+        if shipped != "pathfinding" {
+            continue;
+        }
+        let teams: Vec<ObsBuffers> = (0..16)
+            .map(|_| {
+                let mut obs = ObsBuffers::new(3, obs_shape(&config));
+                random_obs(&mut obs, &mut rng);
+                obs
+            })
+            .collect();
+        let mut actions = vec![0_u8; 48];
+        policy.reset();
+        group.bench_function(BenchmarkId::new("shipped-pathfinding", "16x3"), |b| {
+            b.iter(|| {
+                policy.act_batch(&teams, 0.0, &mut rng, &mut actions, None);
+                black_box(actions[0])
+            })
+        });
+    }
     group.finish();
 }
 
