@@ -145,9 +145,11 @@ impl Default for TrainConfig {
 }
 
 impl TrainConfig {
-    /// Fills the settings whose default depends on the task, where `given` (the config file's
-    /// JSON, `Null` without one) leaves them out: formation trains teams of 3, 4 and 5 in 15
-    /// environments (five of each) with episodes of at most 64 steps.
+    /// Fills the team and episode settings whose default depends on the task, where `given`
+    /// (the config file's JSON, `Null` without one) leaves them out: formation trains teams
+    /// of 3, 4 and 5 in 15 environments (five of each) with episodes of at most 64 steps.
+    /// The task's `shaping` and `reward_scale` stay `None` here; [`run`] applies their
+    /// defaults where it builds the environments.
     fn with_task_defaults(mut self, task: Task, given: &serde_json::Value) -> TrainConfig {
         if task == Task::Formation {
             if given.get("agent_counts").is_none() {
