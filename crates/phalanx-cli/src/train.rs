@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use phalanx_env::{EnvConfig, PoolConfig, Task};
-use phalanx_rl::{Collector, Learner, LearnerConfig, PoolEnv, QNetConfig, Shaping, metrics};
+use phalanx_env::{EnvConfig, PoolConfig, PoolEnv, Shaping, Task};
+use phalanx_rl::{Collector, Learner, LearnerConfig, QNetConfig, metrics};
 use serde::{Deserialize, Serialize};
 
 use crate::{plot, util};

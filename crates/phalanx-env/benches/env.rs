@@ -8,7 +8,9 @@ use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use phalanx_core::{Action, Cell, DistanceMap, Grid, Instance};
-use phalanx_env::{BatchEnv, Env, EnvConfig, ObsBuf, PoolConfig, TrainPool};
+use phalanx_env::{
+    Env, EnvConfig, MarlEnv, ObsBuffers, PoolConfig, PoolEnv, StepOut, step_lockstep,
+};
 use phalanx_gen::{GenConfig, generate, random_grid};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -44,7 +46,7 @@ fn bench_steps(c: &mut Criterion, name: &str, inst: &Instance, fov: u32) {
     let config = EnvConfig { fov, step_limit: Some(u32::MAX), ..EnvConfig::default() };
     let mut env = Env::new(config).unwrap();
     env.reset(inst).unwrap();
-    let mut obs = ObsBuf::new(env.layout(), 1);
+    let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let actions: Vec<Action> =
         (0..n * 4096).map(|_| Action::ALL[rng.random_range(0..5u32) as usize]).collect();
@@ -59,7 +61,7 @@ fn bench_steps(c: &mut Criterion, name: &str, inst: &Instance, fov: u32) {
             let chunk = &actions[(t % 4096) * n..(t % 4096 + 1) * n];
             t += 1;
             black_box(env.step(chunk).team_reward);
-            env.observe_into(&mut obs);
+            env.observe(&mut obs);
             black_box(&obs.grid);
         })
     });
@@ -96,30 +98,35 @@ fn reset(c: &mut Criterion) {
     });
 }
 
-fn batch(c: &mut Criterion) {
-    let pool = TrainPool::new(&PoolConfig::default()).unwrap();
-    let mut rng = ChaCha8Rng::seed_from_u64(4);
+fn lockstep(c: &mut Criterion) {
     let n_envs = 256;
-    let instances: Vec<Instance> = (0..n_envs).map(|_| pool.sample(3, &mut rng)).collect();
     let config = EnvConfig { step_limit: Some(u32::MAX), ..EnvConfig::default() };
-    let mut batch = BatchEnv::new(config, n_envs, 3).unwrap();
-    batch.reset_all(&instances).unwrap();
-    let steps: Vec<Vec<Action>> = (0..64)
-        .map(|_| (0..n_envs * 3).map(|_| Action::ALL[rng.random_range(0..5u32) as usize]).collect())
-        .collect();
+    let first =
+        PoolEnv::new(phalanx_env::Task::PathFinding, &PoolConfig::default(), config, 3).unwrap();
+    let mut envs: Vec<PoolEnv> = vec![first; n_envs];
+    let mut obs: Vec<ObsBuffers> =
+        envs.iter().map(|env| ObsBuffers::new(env.n_agents(), env.obs_shape())).collect();
+    for (seed, (env, obs)) in envs.iter_mut().zip(&mut obs).enumerate() {
+        env.reset(seed as u64, obs);
+    }
+    let offsets: Vec<usize> = (0..n_envs).map(|e| 3 * e).collect();
+    let mut outs = vec![StepOut::default(); n_envs];
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let steps: Vec<Vec<u8>> =
+        (0..64).map(|_| (0..n_envs * 3).map(|_| rng.random_range(0..5u8)).collect()).collect();
     let threads = rayon::current_num_threads();
-    let mut group = c.benchmark_group("env_batch");
+    let mut group = c.benchmark_group("env_lockstep");
     group.throughput(Throughput::Elements((n_envs * 3) as u64));
     let mut t = 0;
     group.bench_function(BenchmarkId::new(format!("256x3_32x32_threads{threads}"), n_envs), |b| {
         b.iter(|| {
-            batch.step(&steps[t % steps.len()]);
+            step_lockstep(&mut envs, &mut obs, &steps[t % steps.len()], &offsets, &mut outs);
             t += 1;
-            black_box(batch.obs().grid.len());
+            black_box(obs[0].grid.len());
         })
     });
     group.finish();
 }
 
-criterion_group!(benches, steps, reset, batch);
+criterion_group!(benches, steps, reset, lockstep);
 criterion_main!(benches);

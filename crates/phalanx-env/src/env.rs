@@ -11,7 +11,8 @@ use phalanx_core::{Action, Cell, Instance, formation_loss};
 use phalanx_gen::GenConfig;
 use rayon::prelude::*;
 
-use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, ObsBuf, ObsLayout, ObsSlices, VECTOR_LEN};
+use crate::marl::{ObsBuffers, ObsShape};
+use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, VECTOR_LEN};
 use crate::{Clip, EnvConfig, EnvError, LeaderRule, Task};
 
 /// Most agents in one episode: two `u16` values are reserved in the occupancy grid.
@@ -81,9 +82,9 @@ struct StepFlags {
 ///
 /// ```ignore
 /// let mut env = Env::new(EnvConfig::default())?;
-/// let mut obs = ObsBuf::new(env.layout(), 1);
 /// env.reset(&instance)?;
-/// env.observe(&mut obs.env_mut(0));
+/// let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
+/// env.observe(&mut obs);
 /// let step = env.step(&actions);
 /// ```
 #[derive(Debug, Clone)]
@@ -186,10 +187,11 @@ impl Env {
         &self.config
     }
 
-    /// Observation sizes of the current episode.
+    /// Sizes of one agent's observation: the four channels of the field of view, the goal
+    /// vector and the five actions' mask.
     #[inline]
-    pub fn layout(&self) -> ObsLayout {
-        ObsLayout { n_agents: self.pos.len(), fov: self.fov }
+    pub fn obs_shape(&self) -> ObsShape {
+        ObsShape { channels: CHANNELS, fov: self.fov, env_vec: VECTOR_LEN, n_actions: N_ACTIONS }
     }
 
     /// Starts a new episode on `instance`: the agents stand on their starts. Buffers are
@@ -544,23 +546,20 @@ impl Env {
     }
 
     /// Writes every agent's observation (channels, goal vector and mask of the task's
-    /// clipping) into one episode's slices. Messages are not touched: they are written in
-    /// turns ([`Env::write_message`]) and cleared by whoever wrote them ([`crate::BatchEnv`]
-    /// does).
+    /// clipping) into `out`; the acting order is [`Env::begin_turns`]'s.
     ///
     /// # Panics
-    /// If the slices do not have this episode's layout.
-    pub fn observe(&self, out: &mut ObsSlices<'_>) {
-        let l = self.layout();
-        assert_eq!(out.grid.len(), l.grid_len(), "grid buffer of another layout");
-        assert_eq!(out.vector.len(), l.vector_len(), "vector buffer of another layout");
-        assert_eq!(out.mask.len(), l.mask_len(), "mask buffer of another layout");
+    /// If the buffers do not have this episode's agent count and [`Env::obs_shape`].
+    pub fn observe(&self, out: &mut ObsBuffers) {
+        assert_eq!(out.n_agents, self.pos.len(), "buffers of another agent count");
+        assert_eq!(out.shape, self.obs_shape(), "buffers of another shape");
+        let shape = out.shape;
         let clip = self.config.task.clip();
         for (i, ((grid, vector), mask)) in out
             .grid
-            .chunks_exact_mut(l.agent_grid_len())
-            .zip(out.vector.chunks_exact_mut(VECTOR_LEN))
-            .zip(out.mask.chunks_exact_mut(N_ACTIONS))
+            .chunks_exact_mut(shape.grid_len())
+            .zip(out.vec.chunks_exact_mut(VECTOR_LEN))
+            .zip(out.action_mask.chunks_exact_mut(N_ACTIONS))
             .enumerate()
         {
             self.write_grid(i, grid);
@@ -750,12 +749,6 @@ impl Env {
                 on_goal: &self.on_goal,
             },
         }
-    }
-
-    /// Observes into a one-episode buffer (convenience for single-episode use).
-    pub fn observe_into(&self, buf: &mut ObsBuf) {
-        assert_eq!(buf.n_envs(), 1, "a one-episode buffer");
-        self.observe(&mut buf.env_mut(0));
     }
 }
 

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::{Env, EnvConfig, EnvError, EvalConfig, EvalMaps, ObsBuf};
+use crate::{Env, EnvConfig, EnvError, EvalConfig, EvalMaps, ObsBuffers};
 
 /// Which policy drives the agents.
 #[derive(Debug, Clone, PartialEq)]
@@ -204,12 +204,12 @@ pub fn rollout(
         return Err(SimError::PlanStart);
     }
     env.reset(instance)?;
-    let mut obs = ObsBuf::new(env.layout(), 1);
+    let mut obs = ObsBuffers::new(n, env.obs_shape());
     let mut trajectory = Plan::new(n);
     trajectory.push(env.positions());
     let mut actions = vec![Action::Wait; n];
     let mut collisions = 0;
-    env.observe_into(&mut obs);
+    env.observe(&mut obs);
     if env.on_goal().iter().all(|&x| x) {
         return Ok((trajectory, 0));
     }
@@ -235,7 +235,7 @@ pub fn rollout(
         collisions += u64::from(step.info.n_cancelled);
         let done = step.terminated || step.truncated;
         trajectory.push(env.positions());
-        env.observe_into(&mut obs);
+        env.observe(&mut obs);
         if done {
             break;
         }

@@ -1,6 +1,8 @@
 //! The environment's step allocates nothing in steady state: a counting global allocator
-//! counts every heap allocation of the process while episodes step after a warm-up (single
-//! episodes, batches on a rayon pool of one and of two threads, and sequential acting).
+//! counts every heap allocation of the process while episodes step after a warm-up: single
+//! episodes with sequential acting, and the lockstep step training takes
+//! ([`step_lockstep`] over [`PoolEnv`]s of mixed team sizes) on rayon pools of one and of
+//! two threads.
 //!
 //! Its own binary without the test harness, so that nothing else allocates meanwhile.
 
@@ -8,7 +10,10 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use phalanx_core::{Action, Instance};
-use phalanx_env::{BatchEnv, Env, EnvConfig, LeaderRule, ObsBuf, PoolConfig, Task, TrainPool};
+use phalanx_env::{
+    Env, EnvConfig, LeaderRule, MarlEnv, ObsBuffers, PoolConfig, PoolEnv, StepOut, Task, TrainPool,
+    step_lockstep,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -60,16 +65,19 @@ fn random_actions(rng: &mut ChaCha8Rng, n: usize) -> Vec<Action> {
 fn single_episodes(instances: &[Instance], rng: &mut ChaCha8Rng) -> usize {
     let mut env = Env::new(EnvConfig { task: Task::Meta, ..EnvConfig::default() }).unwrap();
     env.reset(&instances[0]).unwrap();
-    let mut obs = ObsBuf::new(env.layout(), 1);
+    let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
     let actions = random_actions(rng, 3 * 200);
     let mut run = |env: &mut Env| {
         for chunk in actions.chunks(3) {
             if env.is_done() {
                 break;
             }
-            env.step(chunk);
-            env.observe_into(&mut obs);
             env.begin_turns(LeaderRule::Formation);
+            for &action in chunk {
+                env.choose(action);
+            }
+            env.step_chosen();
+            env.observe(&mut obs);
         }
     };
     run(&mut env);
@@ -77,27 +85,31 @@ fn single_episodes(instances: &[Instance], rng: &mut ChaCha8Rng) -> usize {
     count(|| run(&mut env))
 }
 
-fn batch(instances: &[Instance], threads: usize, rng: &mut ChaCha8Rng) -> usize {
+fn lockstep(task: Task, threads: usize, rng: &mut ChaCha8Rng) -> usize {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    let mut batch = BatchEnv::new(EnvConfig::default(), instances.len(), 3).unwrap();
-    batch.reset_all(instances).unwrap();
-    let steps: Vec<Vec<Action>> =
-        (0..40).map(|_| random_actions(rng, 3 * instances.len())).collect();
-    let turns = [Action::Up; 64];
+    let config = PoolConfig { n_maps: 4, ..PoolConfig::default() };
+    let first = PoolEnv::new(task, &config, EnvConfig::default(), 3).unwrap();
+    let mut envs: Vec<PoolEnv> = (0..24).map(|e| first.with_agents(3 + e % 3).unwrap()).collect();
+    let mut obs: Vec<ObsBuffers> =
+        envs.iter().map(|env| ObsBuffers::new(env.n_agents(), env.obs_shape())).collect();
+    let mut offsets = Vec::new();
+    let mut rows = 0;
+    for (seed, (env, obs)) in envs.iter_mut().zip(&mut obs).enumerate() {
+        env.reset(seed as u64, obs);
+        offsets.push(rows);
+        rows += env.n_agents();
+    }
+    let mut outs = vec![StepOut::default(); envs.len()];
+    // 40 steps: no episode ends (none reaches its goals or formation; the limit is 96).
+    let steps: Vec<Vec<u8>> =
+        (0..40).map(|_| (0..rows).map(|_| rng.random_range(0..5u8)).collect()).collect();
     pool.install(|| {
         for actions in &steps[..10] {
-            batch.step(actions);
+            step_lockstep(&mut envs, &mut obs, actions, &offsets, &mut outs);
         }
         count(|| {
-            for actions in &steps[10..30] {
-                batch.step(actions);
-            }
-            for _ in 0..5 {
-                batch.begin_turns(LeaderRule::PathFinding);
-                for _ in 0..3 {
-                    batch.choose(&turns[..instances.len()]);
-                }
-                batch.step_chosen();
+            for actions in &steps[10..] {
+                step_lockstep(&mut envs, &mut obs, actions, &offsets, &mut outs);
             }
         })
     })
@@ -108,10 +120,15 @@ fn main() {
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let instances: Vec<Instance> = (0..64).map(|_| pool.sample(3, &mut rng)).collect();
     let single = single_episodes(&instances, &mut rng);
-    let one = batch(&instances, 1, &mut rng);
-    let two = batch(&instances, 2, &mut rng);
-    let report =
-        format!("allocations: single {single}, batch on 1 thread {one}, on 2 threads {two}");
-    assert_eq!((single, one, two), (0, 0, 0), "{report}");
+    let mut lockstep_counts = Vec::new();
+    for task in [Task::PathFinding, Task::Formation] {
+        for threads in [1, 2] {
+            lockstep_counts.push((task, threads, lockstep(task, threads, &mut rng)));
+        }
+    }
+    let report = format!(
+        "allocations: single {single}, lockstep (task, threads, count) {lockstep_counts:?}"
+    );
+    assert!(single == 0 && lockstep_counts.iter().all(|it| it.2 == 0), "{report}");
     std::io::Write::write_all(&mut std::io::stdout(), format!("{report}\n").as_bytes()).unwrap();
 }

@@ -7,11 +7,10 @@ use std::hint::black_box;
 
 use burn::tensor::Device;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use phalanx_env::ObsBuffers;
 use phalanx_rl::checkpoint::load_policy_any;
 use phalanx_rl::learner::obs_shape;
-use phalanx_rl::{
-    Episode, Learner, LearnerConfig, ObsBuffers, Policy, QNetConfig, Replay, SequenceMode,
-};
+use phalanx_rl::{Episode, Learner, LearnerConfig, Policy, QNetConfig, Replay, SequenceMode};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -15,9 +15,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::adapter::TaskEnv;
-use crate::env::ObsBuffers;
 use crate::policy::{Policy, row_offsets};
+use phalanx_env::{ObsBuffers, TaskEnv};
 
 /// What one evaluated episode measured.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -18,13 +18,12 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::env::ObsShape;
-use crate::net::{QNet, QNetConfig};
+use crate::net::{QNet, QNetConfig, tensor3, to_vec};
 use crate::policy::Policy;
 use crate::replay::{Batch, Episode, Replay, SequenceMode};
+use phalanx_env::ObsShape;
 
-/// Q-value given to masked actions before a max or argmax ("−∞-like", finite to keep sums finite).
-pub const MASKED_Q: f32 = -1.0e9;
+pub use crate::net::{MASKED_Q, masked_argmax};
 
 /// Linear ε-greedy schedule over environment steps.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -343,18 +342,6 @@ pub fn obs_shape(config: &QNetConfig) -> ObsShape {
     }
 }
 
-/// Index of the largest allowed Q-value (ties: the smallest index). Panics if nothing is allowed.
-pub fn masked_argmax(q: &[f32], allowed: &[bool]) -> usize {
-    assert_eq!(q.len(), allowed.len(), "Q and mask lengths differ");
-    let mut best = None;
-    for (idx, (&value, &ok)) in q.iter().zip(allowed).enumerate() {
-        if ok && best.is_none_or(|(_, best_value)| value > best_value) {
-            best = Some((idx, value));
-        }
-    }
-    best.expect("at least one action must be allowed").0
-}
-
 /// Replace the Q-values of masked actions by [`MASKED_Q`].
 ///
 /// # Shapes
@@ -517,12 +504,4 @@ fn messages_upto(
 
 pub(crate) fn tensor2(data: Vec<f32>, shape: [usize; 2], device: &Device) -> Tensor<2> {
     Tensor::from_data(TensorData::new(data, shape), device)
-}
-
-pub(crate) fn tensor3(data: Vec<f32>, shape: [usize; 3], device: &Device) -> Tensor<3> {
-    Tensor::from_data(TensorData::new(data, shape), device)
-}
-
-pub(crate) fn to_vec<const D: usize>(tensor: Tensor<D>) -> Vec<f32> {
-    tensor.into_data().try_to_vec::<f32>().expect("float tensor data")
 }

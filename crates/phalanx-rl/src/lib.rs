@@ -2,14 +2,15 @@
 //!
 //! - [`net`]: the recurrent Q-network shared by all agents (encoder, LSTM, head with the action
 //!   message after the LSTM);
-//! - [`env`](mod@env): the environment interface the learner trains on ([`MarlEnv`], flat buffers);
-//! - [`adapter`]: [`MarlEnv`] over `phalanx-env` ([`PoolEnv`], one type for every task);
 //! - [`replay`]: episode replay, padded episodes or windows with burn-in;
 //! - [`learner`]: VDN + double DQN with a target network and masked actions;
 //! - [`policy`]: acting, one episode or many in lockstep (batched inference, leader order);
 //! - [`eval`]: greedy evaluation on given instances, in lockstep batches;
 //! - [`train`]: the collect/update loop ([`Collector`]) and its metric names;
 //! - [`checkpoint`]: atomic checkpoints of the whole learner with typed load errors.
+//!
+//! The environments it trains on implement `phalanx_env::MarlEnv` (flat observation buffers,
+//! action masks, leader order); `phalanx_env::PoolEnv` is the low-level tasks' one.
 //!
 //! Built on burn 0.22: modules carry no backend type parameter, the backend and autodiff are
 //! chosen at run time through the [`burn::tensor::Device`] (`Device::flex()` is the pure-Rust
@@ -26,9 +27,7 @@
 //! learner.save("run/checkpoint.bin".as_ref())?;
 //! ```
 
-pub mod adapter;
 pub mod checkpoint;
-pub mod env;
 pub mod eval;
 pub mod learner;
 pub mod net;
@@ -37,9 +36,7 @@ pub mod replay;
 mod resume;
 pub mod train;
 
-pub use adapter::{PoolEnv, Shaping, TaskEnv};
 pub use checkpoint::CheckpointError;
-pub use env::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
 pub use net::{EncoderConfig, QNet, QNetConfig, RecurrentState};

@@ -347,3 +347,28 @@ fn conv3x3(rng: &mut ChaCha8Rng, c_in: usize, c_out: usize, device: &Device) -> 
         padding: PaddingConfig2d::Same,
     }
 }
+
+/// Q-value given to masked actions before a max or argmax ("−∞-like", finite to keep sums finite).
+pub const MASKED_Q: f32 = -1.0e9;
+
+/// Index of the largest allowed Q-value (ties: the smallest index). Panics if nothing is allowed.
+pub fn masked_argmax(q: &[f32], allowed: &[bool]) -> usize {
+    assert_eq!(q.len(), allowed.len(), "Q and mask lengths differ");
+    let mut best = None;
+    for (idx, (&value, &ok)) in q.iter().zip(allowed).enumerate() {
+        if ok && best.is_none_or(|(_, best_value)| value > best_value) {
+            best = Some((idx, value));
+        }
+    }
+    best.expect("at least one action must be allowed").0
+}
+
+/// A `[d0, d1, d2]` tensor from row-major data.
+pub(crate) fn tensor3(data: Vec<f32>, shape: [usize; 3], device: &Device) -> Tensor<3> {
+    Tensor::from_data(TensorData::new(data, shape), device)
+}
+
+/// A float tensor's values, row-major.
+pub(crate) fn to_vec<const D: usize>(tensor: Tensor<D>) -> Vec<f32> {
+    tensor.into_data().try_to_vec::<f32>().expect("float tensor data")
+}

@@ -13,9 +13,8 @@ use burn::tensor::{Device, Int, Tensor, TensorData};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::env::ObsBuffers;
-use crate::learner::{MASKED_Q, masked_argmax, tensor3, to_vec};
-use crate::net::{QNet, QNetConfig, RecurrentState};
+use crate::net::{MASKED_Q, QNet, QNetConfig, RecurrentState, masked_argmax, tensor3, to_vec};
+use phalanx_env::ObsBuffers;
 
 /// A frozen Q-network that acts: batched recurrent step, then the head in leader order.
 #[derive(Clone, Debug)]
@@ -158,31 +157,39 @@ impl Policy {
         epsilon: f64,
         rng: &mut ChaCha8Rng,
         actions: &mut [u8],
-        mut q_out: Option<&mut [f32]>,
+        q_out: Option<&mut [f32]>,
     ) {
+        let obs: Vec<&ObsBuffers> = obs.iter().collect();
+        let features = self.recurrent_step(&obs);
+        let turns =
+            Turns { policies: &[&*self], features: &[features], obs: &[&obs], choice: &|_| 0 };
+        turns.act(epsilon, rng, actions, q_out);
+    }
+
+    /// The recurrent step of every agent of every episode of `obs` (one batched pass; the
+    /// state is carried to the next call): the features `[Σ N_e, 1, H]` its head reads.
+    ///
+    /// # Panics
+    /// As [`Policy::act_batch`].
+    pub fn recurrent_step(&mut self, obs: &[&ObsBuffers]) -> Tensor<3> {
         let cfg = &self.config;
-        let (fov, channels, n_actions, vec_dim) =
-            (cfg.fov, cfg.channels, cfg.n_actions, cfg.vec_dim());
-        let offsets = row_offsets(obs.iter().map(|env| env.n_agents));
+        let (fov, channels, vec_dim) = (cfg.fov, cfg.channels, cfg.vec_dim());
         let rows: usize = obs.iter().map(|env| env.n_agents).sum();
-        assert_eq!(actions.len(), rows, "one action per agent");
-        if let Some(q) = &q_out {
-            assert_eq!(q.len(), rows * n_actions, "one Q row per agent");
-        }
         let mut grid = Vec::with_capacity(rows * channels * fov * fov);
         let mut vec = vec![0.0_f32; rows * vec_dim];
-        for (env, &offset) in obs.iter().zip(&offsets) {
+        let mut row = 0;
+        for env in obs {
             assert!(env.n_agents <= cfg.n_agents_max, "more agents than the network's slots");
             assert_eq!(env.shape.grid_len(), channels * fov * fov, "observation of another size");
             assert_eq!(env.shape.env_vec, cfg.env_vec, "vector of another size");
             grid.extend_from_slice(&env.grid);
             for agent_idx in 0..env.n_agents {
-                let row =
-                    &mut vec[(offset + agent_idx) * vec_dim..(offset + agent_idx + 1) * vec_dim];
-                row[..cfg.env_vec].copy_from_slice(
+                let out = &mut vec[row * vec_dim..(row + 1) * vec_dim];
+                out[..cfg.env_vec].copy_from_slice(
                     &env.vec[agent_idx * cfg.env_vec..(agent_idx + 1) * cfg.env_vec],
                 );
-                row[cfg.env_vec + agent_idx] = 1.0;
+                out[cfg.env_vec + agent_idx] = 1.0;
+                row += 1;
             }
         }
         let grid = Tensor::<5>::from_data(
@@ -195,27 +202,91 @@ impl Policy {
         }
         let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take()); // [rows, 1, H]
         self.state = Some(state);
+        features
+    }
+}
 
-        let msg_dim = cfg.message_dim();
+/// One step's heads in leader order over a batch of episodes, each agent through the head of
+/// the policy it chose: `policies[choice(row)]` reading `features[choice(row)]` (the
+/// features of [`Policy::recurrent_step`] of that policy on `obs[choice(row)]`) and masked
+/// by that policy's observation. The policies share the action count and the agent slots, so
+/// the message (the one-hot actions chosen at earlier ranks of the team, whichever policy
+/// chose them) means the same to every one; the acting order is `obs[0]`'s.
+pub(crate) struct Turns<'a> {
+    /// The policies agents choose from.
+    pub policies: &'a [&'a Policy],
+    /// Each policy's features of the batch, `[Σ N_e, 1, H]`.
+    pub features: &'a [Tensor<3>],
+    /// Each policy's observations of the batch's episodes (same agent counts and order).
+    pub obs: &'a [&'a [&'a ObsBuffers]],
+    /// The policy of each row (`Σ N_e` rows, episode after episode).
+    pub choice: &'a dyn Fn(usize) -> usize,
+}
+
+impl Turns<'_> {
+    /// At rank `k`, the agents ranked `k` of every episode go through their policy's head
+    /// together, each with the message of the actions its team chose at ranks `0..k`; then
+    /// ε-greedy among the allowed actions. Writes `actions[row]` and, when given, the masked
+    /// Q-values `q_out[row]`. Random draws happen rank by rank, episode by episode.
+    pub(crate) fn act(
+        &self,
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+        mut q_out: Option<&mut [f32]>,
+    ) {
+        let cfg = self.policies[0].config();
+        let (n_actions, msg_dim) = (cfg.n_actions, cfg.message_dim());
+        for policy in self.policies {
+            let other = policy.config();
+            assert_eq!(
+                (other.n_actions, other.message_dim()),
+                (n_actions, msg_dim),
+                "policies differ"
+            );
+        }
+        let device = &self.policies[0].device;
+        let obs = self.obs[0];
+        let offsets = row_offsets(obs.iter().map(|env| env.n_agents));
+        let rows: usize = obs.iter().map(|env| env.n_agents).sum();
+        assert_eq!(actions.len(), rows, "one action per agent");
+        if let Some(q) = &q_out {
+            assert_eq!(q.len(), rows * n_actions, "one Q row per agent");
+        }
         let mut messages = vec![0.0_f32; obs.len() * msg_dim]; // [E, M], one per episode
         let max_agents = obs.iter().map(|env| env.n_agents).max().unwrap_or(0);
+        let mut q_rank = vec![0.0_f32; obs.len() * n_actions];
         for rank in 0..max_agents {
             let acting: Vec<usize> = (0..obs.len()).filter(|&e| rank < obs[e].n_agents).collect();
-            let picked: Vec<i64> =
-                acting.iter().map(|&e| (offsets[e] + obs[e].order[rank]) as i64).collect();
-            let n = acting.len();
-            let picked = Tensor::<1, Int>::from_data(TensorData::new(picked, [n]), &self.device);
-            let feat = features.clone().select(0, picked); // [n, 1, H]
-            let msg: Vec<f32> = acting
-                .iter()
-                .flat_map(|&e| messages[e * msg_dim..(e + 1) * msg_dim].iter().copied())
-                .collect();
-            let msg = tensor3(msg, [n, 1, msg_dim], &self.device); // [n, 1, M]
-            let mut q_all = to_vec(self.net.head(feat, msg)); // [n, 1, A]
-            for (i, &e) in acting.iter().enumerate() {
+            for (p, policy) in self.policies.iter().enumerate() {
+                let mine: Vec<usize> = acting
+                    .iter()
+                    .copied()
+                    .filter(|&e| (self.choice)(offsets[e] + obs[e].order[rank]) == p)
+                    .collect();
+                if mine.is_empty() {
+                    continue;
+                }
+                let n = mine.len();
+                let picked: Vec<i64> =
+                    mine.iter().map(|&e| (offsets[e] + obs[e].order[rank]) as i64).collect();
+                let picked = Tensor::<1, Int>::from_data(TensorData::new(picked, [n]), device);
+                let feat = self.features[p].clone().select(0, picked); // [n, 1, H]
+                let msg: Vec<f32> = mine
+                    .iter()
+                    .flat_map(|&e| messages[e * msg_dim..(e + 1) * msg_dim].iter().copied())
+                    .collect();
+                let msg = tensor3(msg, [n, 1, msg_dim], device); // [n, 1, M]
+                let q = to_vec(policy.net.head(feat, msg)); // [n, 1, A]
+                for (i, &e) in mine.iter().enumerate() {
+                    q_rank[e * n_actions..(e + 1) * n_actions]
+                        .copy_from_slice(&q[i * n_actions..(i + 1) * n_actions]);
+                }
+            }
+            for &e in &acting {
                 let agent_idx = obs[e].order[rank];
-                let mask = obs[e].mask_of(agent_idx);
-                let q = &mut q_all[i * n_actions..(i + 1) * n_actions];
+                let mask = self.obs[(self.choice)(offsets[e] + agent_idx)][e].mask_of(agent_idx);
+                let q = &mut q_rank[e * n_actions..(e + 1) * n_actions];
                 for (value, &ok) in q.iter_mut().zip(mask) {
                     if !ok {
                         *value = MASKED_Q;

@@ -13,7 +13,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::env::{MarlEnv, ObsBuffers, ObsShape};
+use phalanx_env::{MarlEnv, ObsBuffers, ObsShape};
 
 /// How training sequences are cut from episodes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

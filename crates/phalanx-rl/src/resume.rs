@@ -10,10 +10,10 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::checkpoint::CheckpointError;
-use crate::env::MarlEnv;
 use crate::learner::Learner;
 use crate::replay::Episode;
 use crate::train::Collector;
+use phalanx_env::MarlEnv;
 
 /// The collection state (the fifth section of a checkpoint).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

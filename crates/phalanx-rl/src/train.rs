@@ -7,10 +7,9 @@
 use std::time::Instant;
 
 use burn::module::Module as _;
+use phalanx_env::{MarlEnv, ObsBuffers, StepOut, step_lockstep};
 use rand::Rng;
-use rayon::prelude::*;
 
-use crate::env::{MarlEnv, ObsBuffers, StepOut};
 use crate::learner::Learner;
 use crate::policy::{Policy, row_offsets};
 use crate::replay::Episode;
@@ -83,8 +82,8 @@ pub fn run_episode<E: MarlEnv>(
 
 /// Episodes played in lockstep for training: `n_envs` environments (teams of possibly
 /// different sizes), one batched policy call per step for all of them
-/// ([`Policy::act_batch`]), stepped in parallel (rayon; results by index, so the thread count
-/// does not change them). A finished episode goes to the learner's replay and its environment
+/// ([`Policy::act_batch`]), stepped in parallel by [`step_lockstep`] (rayon; results by
+/// index, so the thread count does not change them). A finished episode goes to the learner's replay and its environment
 /// starts a new one at once, from a seed drawn from the learner's RNG.
 ///
 /// The collector lives across [`Learner::train`] calls, so a run split into chunks (for
@@ -94,6 +93,7 @@ pub struct Collector<E: MarlEnv> {
     pub(crate) obs: Vec<ObsBuffers>,
     pub(crate) agents: Vec<usize>,
     offsets: Vec<usize>,
+    outs: Vec<StepOut>,
     pub(crate) running: Vec<Episode>,
     pub(crate) collisions: Vec<u64>,
     actions: Vec<u8>,
@@ -120,6 +120,7 @@ impl<E: MarlEnv + Send> Collector<E> {
         Self {
             obs,
             offsets,
+            outs: vec![StepOut::default(); envs.len()],
             running: Vec::new(),
             collisions: vec![0; envs.len()],
             actions: vec![0; total],
@@ -212,14 +213,8 @@ impl Learner {
         policy.act_batch(&c.obs, epsilon, &mut self.rng, &mut c.actions, None);
 
         let actions = &c.actions;
-        let outs: Vec<StepOut> = c
-            .envs
-            .par_iter_mut()
-            .zip(c.obs.par_iter_mut())
-            .zip(c.offsets.par_iter())
-            .map(|((env, obs), &at)| env.step(&actions[at..at + obs.n_agents], obs))
-            .collect();
-        for (e, out) in outs.iter().enumerate() {
+        step_lockstep(&mut c.envs, &mut c.obs, actions, &c.offsets, &mut c.outs);
+        for (e, out) in c.outs.iter().enumerate() {
             let (at, n) = (c.offsets[e], c.agents[e]);
             let episode = &mut c.running[e];
             episode.push_step(&actions[at..at + n], out.team_reward, &c.obs[e]);

@@ -1,8 +1,8 @@
 //! Integration tests of phalanx-env: the authors' environment test, the slow reference
-//! implementation against the fast one, plan replays, sequential acting, batches, pools and
-//! the `sim` command.
+//! implementation against the fast one, plan replays, sequential acting, lockstep
+//! steps, pools and the `sim` command.
 
-mod batch;
+mod lockstep;
 mod mater;
 mod pool;
 mod reference;

@@ -4,7 +4,7 @@
 
 use phalanx_core::{Action, Cell, DistanceMap, Grid, Instance};
 use phalanx_env::obs::COST_SENTINEL;
-use phalanx_env::{Clip, Env, EnvConfig, ObsBuf, Task};
+use phalanx_env::{Clip, Env, EnvConfig, ObsBuffers, Task};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -147,18 +147,18 @@ proptest! {
         env.reset(&inst).unwrap();
         let n = inst.n_agents();
         let grid = inst.grid();
-        let mut obs = ObsBuf::new(env.layout(), 1);
+        let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
         let mut pos = inst.starts().to_vec();
         for (t, chunk) in actions.chunks(n).enumerate() {
             // Observation of the current state.
-            env.observe_into(&mut obs);
+            env.observe(&mut obs);
             for agent in 0..n {
                 let slow = slow_grid(grid, &pos, inst.goals(), fov, agent);
-                prop_assert_eq!(obs.agent_grid(0, agent), &slow[..], "t {} agent {}", t, agent);
+                prop_assert_eq!(obs.grid_of(agent), &slow[..], "t {} agent {}", t, agent);
                 let mask = slow_mask(grid, &pos, inst.goals(), task.clip(), agent);
-                prop_assert_eq!(obs.agent_mask(0, agent), &mask[..]);
+                prop_assert_eq!(obs.mask_of(agent), &mask[..]);
                 let [ux, uy, d] = env.goal_vector(agent);
-                let v = obs.agent_vector(0, agent);
+                let v = obs.vec_of(agent);
                 prop_assert!((f64::from(v[0]) - ux).abs() < 1e-6 && (f64::from(v[1]) - uy).abs() < 1e-6);
                 prop_assert!((f64::from(v[2]) - d / (d + fov as f64)).abs() < 1e-6);
             }

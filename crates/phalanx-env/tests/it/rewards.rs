@@ -1,7 +1,7 @@
 //! The rewards of Table I, per task, on hand-made corridors.
 
 use phalanx_core::Action::{Left, Right, Wait};
-use phalanx_env::{Clip, Env, EnvConfig, ObsBuf, Task};
+use phalanx_env::{Clip, Env, EnvConfig, ObsBuffers, Task};
 
 use crate::{c, instance};
 
@@ -82,9 +82,9 @@ fn masks_follow_the_clipping() {
     ] {
         let mut env = env(task);
         env.reset(&inst).unwrap();
-        let mut obs = ObsBuf::new(env.layout(), 1);
-        env.observe_into(&mut obs);
-        assert_eq!(obs.agent_mask(0, 0), &expected, "{task:?}");
+        let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
+        env.observe(&mut obs);
+        assert_eq!(obs.mask_of(0), &expected, "{task:?}");
     }
     // Path-finding clipping forbids moving away: from (1, 0) Left goes up the gradient.
     let inst = instance(3, 3, &[c(1, 1)], &[c(1, 0)], &[c(2, 2)]);

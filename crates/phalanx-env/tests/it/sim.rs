@@ -1,10 +1,9 @@
-//! The `sim` command, generated resets, bounded observations on large maps, and batch
-//! bookkeeping.
+//! The `sim` command, generated resets and bounded observations on large maps.
 
 use phalanx_core::Action;
 use phalanx_env::obs::COST_SENTINEL;
 use phalanx_env::sim::{SimArgs, SimError, SimPolicy, SimReport, SimSource, run};
-use phalanx_env::{BatchEnv, Env, EnvConfig, EnvError, ObsBuf};
+use phalanx_env::{Env, EnvConfig, EnvError, ObsBuffers};
 use phalanx_gen::GenConfig;
 
 use crate::{c, instance};
@@ -55,7 +54,7 @@ fn reset_from_generator_settings() {
     let config = GenConfig { size: 32, density: 0.15, n_agents: 4, seed: 9, fov: 9 };
     let inst = env.reset_generated(&config).unwrap();
     assert_eq!(env.positions(), inst.starts());
-    assert_eq!(env.layout().fov, 7);
+    assert_eq!(env.obs_shape().fov, 7);
     let again = phalanx_gen::generate(&GenConfig { fov: 7, ..config }).unwrap();
     assert_eq!(inst, again);
     assert!(matches!(
@@ -70,56 +69,16 @@ fn observations_stay_bounded_on_a_large_map() {
     let inst = env
         .reset_generated(&GenConfig { size: 256, density: 0.15, n_agents: 3, seed: 4, fov: 9 })
         .unwrap();
-    let mut obs = ObsBuf::new(env.layout(), 1);
+    let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
     for t in 0..40 {
-        env.observe_into(&mut obs);
+        env.observe(&mut obs);
         for &v in &obs.grid {
             assert!((-1.0..=1.0).contains(&v) || v == COST_SENTINEL, "{v}");
         }
-        for &v in &obs.vector {
+        for &v in &obs.vec {
             assert!((-1.0..=1.0).contains(&v), "{v}");
         }
         env.step(&[Action::ALL[t % 4], Action::Up, Action::Right]);
     }
     assert_eq!(inst.grid().width(), 256);
-}
-
-#[test]
-fn batch_skips_ended_episodes_until_reset() {
-    let short = instance(3, 1, &[], &[c(0, 0)], &[c(1, 0)]);
-    let long = instance(5, 1, &[], &[c(0, 0)], &[c(4, 0)]);
-    let mut batch = BatchEnv::new(EnvConfig::default(), 2, 1).unwrap();
-    batch.reset_all(&[short.clone(), long.clone()]).unwrap();
-    batch.step(&[Action::Right, Action::Right]);
-    assert!(batch.outcomes()[0].terminated && !batch.outcomes()[1].terminated);
-    batch.step(&[Action::Right, Action::Right]);
-    assert_eq!(batch.rewards()[0], 0.0);
-    assert!(batch.outcomes()[0].terminated);
-    assert_eq!(batch.env(0).positions(), &[c(1, 0)]);
-    assert_eq!(batch.env(1).positions(), &[c(2, 0)]);
-    batch.reset(0, &long).unwrap();
-    assert_eq!(batch.env(0).positions(), &[c(0, 0)]);
-    assert!(!batch.outcomes()[0].terminated);
-    let two = instance(3, 1, &[], &[c(0, 0), c(2, 0)], &[c(1, 0), c(2, 0)]);
-    assert_eq!(batch.reset(1, &two), Err(EnvError::AgentCount { expected: 1, found: 2 }));
-}
-
-#[test]
-fn reset_done_restarts_only_ended_episodes() {
-    let short = instance(3, 1, &[], &[c(0, 0)], &[c(1, 0)]);
-    let long = instance(5, 1, &[], &[c(0, 0)], &[c(4, 0)]);
-    let mut batch = BatchEnv::new(EnvConfig::default(), 3, 1).unwrap();
-    assert_eq!(batch.reset_done(|_| short.clone()).unwrap(), 3);
-    batch.reset(2, &long).unwrap();
-    batch.step(&[Action::Right, Action::Wait, Action::Right]);
-    let mut seen = Vec::new();
-    let n = batch
-        .reset_done(|i| {
-            seen.push(i);
-            long.clone()
-        })
-        .unwrap();
-    assert_eq!((n, seen), (1, vec![0]));
-    assert_eq!(batch.env(0).goals(), &[c(4, 0)]);
-    assert_eq!(batch.env(1).positions(), &[c(0, 0)]);
 }

@@ -1,8 +1,8 @@
 //! The adapters over `phalanx-env`: observations, masks and orders after reset and random
 //! masked steps, episodes ending by the step limit, and a short training run.
 
-use phalanx_env::{EnvConfig, PoolConfig, Task};
-use phalanx_rl::{Collector, Learner, LearnerConfig, MarlEnv, ObsBuffers, PoolEnv, QNetConfig};
+use phalanx_env::{EnvConfig, MarlEnv, ObsBuffers, PoolConfig, PoolEnv, Task};
+use phalanx_rl::{Collector, Learner, LearnerConfig, QNetConfig};
 use rand::SeedableRng;
 use rand::seq::IndexedRandom;
 use rand_chacha::ChaCha8Rng;
@@ -111,7 +111,7 @@ fn an_episode_is_rebuilt_from_its_seed_and_actions() {
     let mut learner = Learner::new(QNetConfig::default(), config, &[3], 2, &device);
     let env = PoolEnv::new(Task::Formation, &small_pool(), env_config(), 3)
         .unwrap()
-        .with_shaping(Some(phalanx_rl::Shaping { weight: 5.0, gamma: 1.0 }));
+        .with_shaping(Some(phalanx_env::Shaping { weight: 5.0, gamma: 1.0 }));
     let mut collector = Collector::new(vec![env.clone()], STEP_LIMIT as usize);
     learner.train(&mut collector, 60, &mut |_: &'static str, _, _| {});
     assert!(learner.replays()[0].len() >= 3);

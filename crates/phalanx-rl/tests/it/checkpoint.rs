@@ -3,8 +3,9 @@
 use std::path::Path;
 
 use burn::tensor::Device;
+use phalanx_env::ObsBuffers;
 use phalanx_rl::checkpoint::{load_policy, load_policy_any, read_header};
-use phalanx_rl::{CheckpointError, Collector, Learner, ObsBuffers, Policy, QNetConfig};
+use phalanx_rl::{CheckpointError, Collector, Learner, Policy, QNetConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

@@ -4,10 +4,10 @@
 //! Up and Down are always masked, Left at cell 0, Right at cell 3. The optimal return is 8
 //! (Right, Right, Right), reached in three steps.
 
+use phalanx_env::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 use phalanx_rl::train::run_episode;
 use phalanx_rl::{
-    Collector, EncoderConfig, EpsilonSchedule, Learner, LearnerConfig, MarlEnv, ObsBuffers,
-    ObsShape, QNetConfig, SequenceMode, StepOut,
+    Collector, EncoderConfig, EpsilonSchedule, Learner, LearnerConfig, QNetConfig, SequenceMode,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

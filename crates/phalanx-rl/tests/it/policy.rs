@@ -3,8 +3,8 @@
 
 use phalanx_core::Instance;
 use phalanx_env::PoolConfig;
-use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, Task};
-use phalanx_rl::{EvalSummary, MarlEnv, ObsBuffers, PoolEnv, QNetConfig, Rollouts, evaluate};
+use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, MarlEnv, ObsBuffers, PoolEnv, Task};
+use phalanx_rl::{EvalSummary, QNetConfig, Rollouts, evaluate};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

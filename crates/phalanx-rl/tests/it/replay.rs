@@ -1,6 +1,7 @@
 //! Replay: padding, windows with burn-in, terminated flags.
 
-use phalanx_rl::{Episode, ObsBuffers, ObsShape, Replay, SequenceMode};
+use phalanx_env::{ObsBuffers, ObsShape};
+use phalanx_rl::{Episode, Replay, SequenceMode};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

@@ -1,5 +1,6 @@
-//! [`MarlEnv`] over the simulator of `phalanx-env`: the path-finding and formation-training
-//! environments the low-level policies are trained in (SPEC §5, §6), one type for every task.
+//! The simulator with a task's rewards, clipping and leader order writing [`ObsBuffers`]
+//! ([`TaskEnv`]), and the [`MarlEnv`] the low-level policies are trained in ([`PoolEnv`]: the
+//! path-finding and formation-training environments of SPEC §5, §6, one type for every task).
 //!
 //! Each reset draws a map from the training pool ([`TrainPool`], generated once) and a fresh
 //! instance from a `ChaCha8Rng` seeded with the reset's seed: for [`Task::Formation`] a
@@ -9,15 +10,15 @@
 //! mask of the task's clipping and the leader order of the task's rule.
 
 use phalanx_core::{Action, Instance};
-use phalanx_env::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
-use phalanx_env::{Clip, Env, EnvConfig, EnvError, LeaderRule, PoolConfig, Task, TrainPool};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::env::{MarlEnv, ObsBuffers, ObsShape, StepOut};
+use crate::marl::{MarlEnv, ObsBuffers, ObsShape, StepOut};
+use crate::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
+use crate::{Env, EnvConfig, EnvError, LeaderRule, PoolConfig, Task, TrainPool};
 
 /// Formation placements tried on fresh maps before a reset gives up (each try already makes
-/// [`phalanx_env::MAX_PLACEMENT_ATTEMPTS`] placements on its map).
+/// [`crate::MAX_PLACEMENT_ATTEMPTS`] placements on its map).
 const FORMATION_MAP_TRIES: usize = 16;
 
 /// The simulator with a task's rewards, clipping and leader rule, writing [`ObsBuffers`]:
@@ -28,7 +29,6 @@ pub struct TaskEnv {
     env: Env,
     task: Task,
     n_agents: usize,
-    clip: Clip,
     rule: LeaderRule,
     actions: Vec<Action>,
 }
@@ -45,7 +45,6 @@ impl TaskEnv {
             env: Env::new(EnvConfig { task, ..env })?,
             task,
             n_agents,
-            clip: task.clip(),
             rule: task.leader_rule(),
             actions: vec![Action::Wait; n_agents],
         })
@@ -94,17 +93,9 @@ impl TaskEnv {
 
     /// Writes every agent's channels, goal vector and mask, then the leader order.
     fn observe(&mut self, obs: &mut ObsBuffers) {
-        let shape = obs.shape;
         assert_eq!(obs.n_agents, self.n_agents, "buffers of another agent count");
-        assert_eq!(shape, self.obs_shape(), "buffers of another shape");
-        let grids = obs.grid.chunks_exact_mut(shape.grid_len());
-        let vectors = obs.vec.chunks_exact_mut(shape.env_vec);
-        let masks = obs.action_mask.chunks_exact_mut(shape.n_actions);
-        for (agent, ((grid, vector), mask)) in grids.zip(vectors).zip(masks).enumerate() {
-            self.env.write_grid(agent, grid);
-            self.env.write_vector(agent, vector);
-            self.env.write_mask(agent, self.clip, mask);
-        }
+        assert_eq!(obs.shape, self.obs_shape(), "buffers of another shape");
+        self.env.observe(obs);
         let order = self.env.begin_turns(self.rule);
         obs.order.clear();
         obs.order.extend(order.iter().map(|&agent| usize::from(agent)));

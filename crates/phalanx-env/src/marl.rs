@@ -1,4 +1,6 @@
-//! The environment interface the learner trains on, independent of any simulator.
+//! The interface training and evaluation step: a cooperative multi-agent environment with
+//! one team reward per step, its flat observation buffers, and the lockstep step of many
+//! such environments at once.
 //!
 //! A [`MarlEnv`] is a cooperative multi-agent environment with one team reward per step.
 //! Observations travel in flat `f32` buffers ([`ObsBuffers`]) that the environment overwrites in
@@ -8,6 +10,8 @@
 //! leader order in which agents act within the step (SPEC §6: the leader first).
 //! Acting is sequential: the agent at rank `k` sees the actions chosen by ranks `0..k` as its
 //! message, but the environment receives the joint action at once.
+
+use rayon::prelude::*;
 
 /// Sizes of one agent's observation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,6 +63,18 @@ impl ObsBuffers {
         }
     }
 
+    /// Agent `agent_idx`'s grid observation, `[C, F, F]`.
+    pub fn grid_of(&self, agent_idx: usize) -> &[f32] {
+        let len = self.shape.grid_len();
+        &self.grid[agent_idx * len..(agent_idx + 1) * len]
+    }
+
+    /// Agent `agent_idx`'s vector observation.
+    pub fn vec_of(&self, agent_idx: usize) -> &[f32] {
+        let len = self.shape.env_vec;
+        &self.vec[agent_idx * len..(agent_idx + 1) * len]
+    }
+
     /// Agent `agent_idx`'s allowed actions.
     pub fn mask_of(&self, agent_idx: usize) -> &[bool] {
         let n_actions = self.shape.n_actions;
@@ -82,7 +98,7 @@ impl ObsBuffers {
 }
 
 /// What one step returns.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepOut {
     /// Team reward (sum of the agents' rewards, SPEC §5).
     pub team_reward: f32,
@@ -95,6 +111,8 @@ pub struct StepOut {
 }
 
 /// A cooperative multi-agent environment with a team reward.
+///
+/// [`crate::PoolEnv`] is the one for the low-level tasks; learners train on any.
 pub trait MarlEnv {
     /// Number of agents; fixed for the environment's lifetime.
     fn n_agents(&self) -> usize;
@@ -105,4 +123,36 @@ pub trait MarlEnv {
     /// Apply the joint action (`actions[agent_idx]`, all allowed by the last mask) and write the
     /// next observation (also after the last step: the learner bootstraps from it on truncation).
     fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut;
+}
+
+/// Steps every environment with its slice of `actions` (`[Σ N_e]`, environment after
+/// environment, agent order within one; `offsets[e]` is where environment `e`'s agents
+/// start) and writes its observation into `obs[e]` and its outcome into `outs[e]`.
+///
+/// This is the step of training's collector. Environments run in parallel on the rayon pool
+/// (each writes only its own buffers, so the result is the same on any thread count) or on
+/// the calling thread when the pool has one thread; nothing is allocated.
+///
+/// # Panics
+/// If the slices disagree in length.
+pub fn step_lockstep<E: MarlEnv + Send>(
+    envs: &mut [E],
+    obs: &mut [ObsBuffers],
+    actions: &[u8],
+    offsets: &[usize],
+    outs: &mut [StepOut],
+) {
+    let n = envs.len();
+    assert!(obs.len() == n && offsets.len() == n && outs.len() == n, "one buffer per environment");
+    let step = |((env, obs), (&at, out)): ((&mut E, &mut ObsBuffers), (&usize, &mut StepOut))| {
+        *out = env.step(&actions[at..at + obs.n_agents], obs);
+    };
+    if rayon::current_num_threads() == 1 {
+        envs.iter_mut().zip(obs.iter_mut()).zip(offsets.iter().zip(outs.iter_mut())).for_each(step);
+    } else {
+        envs.par_iter_mut()
+            .zip(obs.par_iter_mut())
+            .zip(offsets.par_iter().zip(outs.par_iter_mut()))
+            .for_each(step);
+    }
 }
