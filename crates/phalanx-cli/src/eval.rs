@@ -15,16 +15,44 @@ use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_core::Instance;
-use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, Task, formation_instance};
+use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, Task};
 use phalanx_rl::checkpoint::load_policy_any;
-use phalanx_rl::{EvalSummary, Rollouts, evaluate};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
+use phalanx_rl::{EvalSummary, Rollouts, evaluate, evaluate_hierarchy};
 use serde::Serialize;
 
-use crate::models;
-use crate::train::TaskName;
-use crate::util;
+use crate::{meta, models, util};
+
+/// The learned policies `phalanx eval` runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum PolicyName {
+    /// The path-finding policy alone.
+    #[value(name = "pathfinding")]
+    PathFinding,
+    /// The formation policy in the formation-training environment.
+    Formation,
+    /// The hierarchy: the meta policy over the path-finding and formation policies.
+    Hrl,
+}
+
+impl PolicyName {
+    /// The name on the command line and under `models/` (`meta` for the hierarchy).
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            PolicyName::PathFinding => "pathfinding",
+            PolicyName::Formation => "formation",
+            PolicyName::Hrl => "meta",
+        }
+    }
+
+    /// The environment's task.
+    pub(crate) fn task(self) -> Task {
+        match self {
+            PolicyName::PathFinding => Task::PathFinding,
+            PolicyName::Formation => Task::Formation,
+            PolicyName::Hrl => Task::Meta,
+        }
+    }
+}
 
 /// Episodes per lockstep batch (one batched policy call per step for all of them).
 const BATCH: usize = 25;
@@ -38,8 +66,9 @@ const FORMATION_STEPS: u32 = 50;
 pub(crate) struct EvalCmd {
     /// The policy to evaluate.
     #[arg(long, value_enum)]
-    policy: TaskName,
-    /// Directory with policy.bin or checkpoint (default: the shipped models/<policy>).
+    policy: PolicyName,
+    /// Directory with policy.bin or checkpoint (default: the shipped models/<policy>; for
+    /// hrl, the meta policy's, models/meta).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
     /// Number of fresh maps (one episode each).
@@ -67,6 +96,17 @@ pub(crate) struct EvalCmd {
     /// Probability of a random allowed action per agent and step in the extra rollouts.
     #[arg(long, default_value_t = 0.05)]
     random_prob: f64,
+    /// hrl: the multiple of the base formation weight w_f a weight-conditioned meta policy
+    /// runs at.
+    #[arg(long, default_value_t = 1.0)]
+    multiple: f64,
+    /// hrl: the path-finding policy's directory or file (default: the one the meta policy
+    /// was trained over, if it is the shipped one).
+    #[arg(long, value_name = "DIR")]
+    pathfinding_weights: Option<PathBuf>,
+    /// hrl: the formation policy's directory or file.
+    #[arg(long, value_name = "DIR")]
+    formation_weights: Option<PathBuf>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -131,9 +171,25 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         cmd.random_prob
     );
     let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
-    let episodes = evaluate(&mut policy, task, &env, &instances, BATCH, rollouts, &mut |done| {
-        bar.set_position(done as u64);
-    })
+    let mut progress = |done: usize| bar.set_position(done as u64);
+    let episodes = if cmd.policy == PolicyName::Hrl {
+        anyhow::ensure!(
+            cmd.multiple.is_finite() && cmd.multiple >= 0.0,
+            "--multiple {} must be a non-negative number",
+            cmd.multiple
+        );
+        let mut hierarchy = meta::hierarchy(
+            policy,
+            &header,
+            &file,
+            cmd.pathfinding_weights.as_deref(),
+            cmd.formation_weights.as_deref(),
+            cmd.multiple,
+        )?;
+        evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
+    } else {
+        evaluate(&mut policy, task, &env, &instances, BATCH, rollouts, &mut progress)
+    }
     .context("evaluating")?;
     let seconds = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
@@ -168,27 +224,14 @@ fn instances(cmd: &EvalCmd, task: Task, fov: u32) -> anyhow::Result<Vec<Instance
         fov,
         seed: cmd.seed,
     });
-    let mut res = Vec::with_capacity(cmd.maps);
-    let mut index = 0_u64;
-    while res.len() < cmd.maps {
-        let generated = maps.instance(index).context("generating an evaluation instance")?;
-        if task == Task::Formation {
-            // A formation episode on the fresh map; a map without room for one is skipped.
-            let mut rng = ChaCha8Rng::seed_from_u64(maps.seed(index));
-            if let Ok(instance) = formation_instance(generated.grid(), cmd.agents, fov, &mut rng) {
-                res.push(instance);
-            }
-            anyhow::ensure!(
-                index < 10 * cmd.maps as u64 + 100,
-                "no room for a formation of {} agents on these maps",
-                cmd.agents
-            );
-        } else {
-            res.push(generated);
-        }
-        index += 1;
+    if task == Task::Formation {
+        return maps
+            .formation_instances(cmd.agents, cmd.maps)
+            .with_context(|| format!("no room for a formation of {} agents", cmd.agents));
     }
-    Ok(res)
+    (0..cmd.maps as u64)
+        .map(|index| maps.instance(index).context("generating an evaluation instance"))
+        .collect()
 }
 
 /// The report as a table.

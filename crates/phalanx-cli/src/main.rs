@@ -11,6 +11,7 @@ mod eval;
 #[path = "gen.rs"]
 mod generate;
 mod info;
+mod meta;
 mod models;
 mod plot;
 mod sim;
@@ -18,6 +19,7 @@ mod solve;
 mod train;
 mod util;
 mod validate;
+mod weight;
 
 use std::io::Write as _;
 use std::process::ExitCode;
@@ -45,10 +47,12 @@ enum Command {
     Sim(sim::SimCmd),
     /// Plan an instance with a centralised planner and write the plan (libMultiRobotPlanning YAML).
     Solve(solve::SolveCmd),
-    /// Train a path-finding or formation policy (VDN + double DQN) on the training pool.
+    /// Train a path-finding, formation or meta policy (VDN + double DQN) on the training pool.
     Train(train::TrainCmd),
     /// Evaluate a trained policy on fresh maps (success rate, makespan, collisions, L_f).
     Eval(eval::EvalCmd),
+    /// Estimate the meta reward's balancing weight w_f (the paper's Eq. 14).
+    Weight(weight::WeightCmd),
 }
 
 fn main() -> ExitCode {
@@ -72,6 +76,7 @@ fn main() -> ExitCode {
         Command::Solve(cmd) => solve::run(cmd),
         Command::Train(cmd) => train::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
+        Command::Weight(cmd) => weight::run(cmd),
     };
     match res {
         Ok(code) => code,

@@ -1,5 +1,6 @@
-//! `phalanx train pathfinding|formation`: trains a low-level policy (VDN + double DQN, SPEC §6)
-//! on the training pool, with a progress bar on stderr, metrics appended as JSON lines to
+//! `phalanx train pathfinding|formation|meta`: trains a low-level policy (VDN + double DQN,
+//! SPEC §6) on the training pool, or the meta policy over the two frozen ones (`phalanx_rl::
+//! MetaEnv`), with a progress bar on stderr, metrics appended as JSON lines to
 //! `DIR/metrics.jsonl` (one `{"name", "step", "value"}` object per value, names of
 //! `phalanx_rl::metrics`), an atomic checkpoint `DIR/checkpoint` with the policy file
 //! `DIR/policy.bin` beside it every N updates and at the end, and the training curves
@@ -7,8 +8,9 @@
 //! exactly as the run would have gone on: the checkpoint carries the replay buffers and the
 //! running episodes (`Learner::save_with_collection`).
 //!
-//! The run's settings (`--config FILE`, JSON, every field optional) are written to
-//! `DIR/config.json`; a resumed run without `--config` reads them back from there.
+//! The run's settings (`phalanx_rl::TrainConfig`: `--config FILE`, JSON, every field optional,
+//! over the task's defaults, then the flags) are written to `DIR/config.json`; a resumed run
+//! without `--config` reads them back from there.
 
 use std::collections::VecDeque;
 use std::fs;
@@ -20,11 +22,10 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use phalanx_env::{EnvConfig, PoolConfig, PoolEnv, Shaping, Task};
-use phalanx_rl::{Collector, Learner, LearnerConfig, QNetConfig, metrics};
-use serde::{Deserialize, Serialize};
+use phalanx_env::MarlEnv;
+use phalanx_rl::{Collector, Learner, Multiples, TrainConfig, TrainTask, metrics};
 
-use crate::{plot, util};
+use crate::{meta, plot, util};
 
 /// The policy file (online network only, what `phalanx eval` and `models/` use) written
 /// beside each checkpoint.
@@ -36,7 +37,7 @@ const CURVES: &str = "curves.svg";
 /// Episodes in the progress bar's recent success rate.
 const SUCCESS_WINDOW: usize = 100;
 
-/// The low-level policies `phalanx train` trains.
+/// The policies `phalanx train` trains.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum TaskName {
     /// Path finding: reach the goals across a pool map.
@@ -44,34 +45,31 @@ pub(crate) enum TaskName {
     PathFinding,
     /// Formation: reach a random target formation from a random placement.
     Formation,
+    /// The meta policy: choose path finding or formation per agent and step, over the frozen
+    /// low-level policies, on the meta reward (Table I) weighted by w_f (Eq. 14).
+    Meta,
 }
 
 impl TaskName {
-    /// The name on the command line and under `models/`.
-    pub(crate) fn name(self) -> &'static str {
+    /// The library's task.
+    pub(crate) fn train_task(self) -> TrainTask {
         match self {
-            TaskName::PathFinding => "pathfinding",
-            TaskName::Formation => "formation",
-        }
-    }
-
-    /// The environment's task.
-    pub(crate) fn task(self) -> Task {
-        match self {
-            TaskName::PathFinding => Task::PathFinding,
-            TaskName::Formation => Task::Formation,
+            TaskName::PathFinding => TrainTask::PathFinding,
+            TaskName::Formation => TrainTask::Formation,
+            TaskName::Meta => TrainTask::Meta,
         }
     }
 }
 
-/// Trains a path-finding or formation policy.
+/// Trains a path-finding, formation or meta policy.
 #[derive(Debug, clap::Args)]
 pub(crate) struct TrainCmd {
     /// The policy to train.
     #[arg(value_enum)]
     task: TaskName,
-    /// Settings (JSON, every field optional): agent_counts, n_envs, steps, checkpoint_every,
-    /// net, learner, env, pool, shaping, reward_scale, init_from (docs/learning.md).
+    /// Settings (JSON, every field optional, over the task's defaults): agent_counts, n_envs,
+    /// steps, checkpoint_every, net, learner, env, pool, shaping, reward_scale, init_from,
+    /// meta (docs/learning.md, docs/hierarchy.md).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Output directory: metrics.jsonl, checkpoint, config.json.
@@ -87,111 +85,52 @@ pub(crate) struct TrainCmd {
     /// overrides the config's `steps`.
     #[arg(long, value_name = "N")]
     steps: Option<u64>,
-}
-
-/// Settings of a training run. Defaults: teams of 3, 16 environments in lockstep, 200 000
-/// steps, a checkpoint every 1000 updates, the default network and learner, the paper's
-/// environment and pool; formation training defaults to teams of 3, 4 and 5, 15 environments
-/// and a step limit of 64 (the shipped formation policy's settings, see
-/// [`TrainConfig::with_task_defaults`]).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-struct TrainConfig {
-    /// Team sizes trained (one shared network; environments take the sizes in turn).
-    agent_counts: Vec<usize>,
-    /// Environments played in lockstep (batched inference).
-    n_envs: usize,
-    /// Total environment steps.
-    steps: u64,
-    /// Gradient updates between checkpoints.
-    checkpoint_every: u64,
-    /// Network sizes (ignored on resume: the checkpoint's).
-    net: QNetConfig,
-    /// Learner hyper-parameters (ignored on resume: the checkpoint's).
-    learner: LearnerConfig,
-    /// Field of view and step limit (the task is the command's).
-    env: EnvConfig,
-    /// The training pool.
-    pool: PoolConfig,
-    /// Weight of the goal-progress bonus (`phalanx_rl::Shaping` with γ = 1: `weight` per unit
-    /// of BFS distance an agent gains towards its goal, the same taken for each unit lost):
-    /// default 20 for formation, 0 for path finding (whose Table I reward already pays each
-    /// step towards the goal).
-    shaping: Option<f32>,
-    /// Factor on the team reward seen by the learner (shaping included): default 0.05 for
-    /// formation (its `−k·L_f` per step is large), 1 for path finding.
-    reward_scale: Option<f32>,
-    /// Warm start: initial weights from this checkpoint or policy file (same network), e.g.
-    /// the path-finding policy for formation training; ignored on resume.
-    init_from: Option<PathBuf>,
-}
-
-impl Default for TrainConfig {
-    fn default() -> Self {
-        Self {
-            agent_counts: vec![3],
-            n_envs: 16,
-            steps: 200_000,
-            checkpoint_every: 1000,
-            net: QNetConfig::default(),
-            learner: LearnerConfig::default(),
-            env: EnvConfig::default(),
-            pool: PoolConfig::default(),
-            shaping: None,
-            reward_scale: None,
-            init_from: None,
-        }
-    }
-}
-
-impl TrainConfig {
-    /// Fills the team and episode settings whose default depends on the task, where `given`
-    /// (the config file's JSON, `Null` without one) leaves them out: formation trains teams
-    /// of 3, 4 and 5 in 15 environments (five of each) with episodes of at most 64 steps.
-    /// The task's `shaping` and `reward_scale` stay `None` here; [`run`] applies their
-    /// defaults where it builds the environments.
-    fn with_task_defaults(mut self, task: Task, given: &serde_json::Value) -> TrainConfig {
-        if task == Task::Formation {
-            if given.get("agent_counts").is_none() {
-                self.agent_counts = vec![3, 4, 5];
-            }
-            if given.get("n_envs").is_none() {
-                self.n_envs = 15;
-            }
-            if given.get("env").and_then(|env| env.get("step_limit")).is_none() {
-                self.env.step_limit = Some(64);
-            }
-        }
-        self
-    }
+    /// Meta: train one meta policy at M times the base weight w_f (not weight-conditioned).
+    #[arg(long, value_name = "M", conflicts_with = "formation_weight")]
+    weight_multiple: Option<f64>,
+    /// Meta: train one meta policy with the formation weight W for every team size.
+    #[arg(long, value_name = "W")]
+    formation_weight: Option<f64>,
 }
 
 /// Runs `phalanx train`.
 pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     let dir = &cmd.out;
     let saved_config = dir.join("config.json");
-    let task = cmd.task.task();
+    let task = cmd.task.train_task();
     let mut config = match (&cmd.config, cmd.resume) {
         (Some(path), _) => read_config(path, task)?,
         (None, true) if saved_config.exists() => read_config(&saved_config, task)?,
-        (None, _) => TrainConfig::default().with_task_defaults(task, &serde_json::Value::Null),
+        (None, _) => TrainConfig::for_task(task),
     };
     if let Some(steps) = cmd.steps {
         config.steps = steps;
     }
+    for (flag, value) in
+        [("--weight-multiple", cmd.weight_multiple), ("--formation-weight", cmd.formation_weight)]
+    {
+        if let Some(v) = value {
+            anyhow::ensure!(task == TrainTask::Meta, "{flag} is for `phalanx train meta`");
+            anyhow::ensure!(v.is_finite() && v >= 0.0, "{flag} {v} must be a non-negative number");
+        }
+    }
+    if let Some(multiple) = cmd.weight_multiple {
+        config.meta.multiples = Multiples::Fixed { multiple };
+    }
+    if let Some(w) = cmd.formation_weight {
+        config.meta.multiples = Multiples::Fixed { multiple: 1.0 };
+        config.meta.base_weight = Some(config.agent_counts.iter().map(|&k| (k, w)).collect());
+    }
+    if task == TrainTask::Meta {
+        let conditioned = matches!(config.meta.multiples, Multiples::Conditioned { .. });
+        config.net.env_vec = phalanx_env::obs::VECTOR_LEN + usize::from(conditioned);
+    }
+    config.check().map_err(|err| anyhow::anyhow!("{err}"))?;
     let device = Device::flex().autodiff();
     let checkpoint = dir.join("checkpoint");
     let mut learner = if cmd.resume {
         Learner::load(&checkpoint, &device).context("resuming")?
     } else {
-        let max = config.net.n_agents_max;
-        anyhow::ensure!(!config.agent_counts.is_empty(), "agent_counts must not be empty");
-        for &n in &config.agent_counts {
-            anyhow::ensure!(
-                (1..=max).contains(&n),
-                "agent count {n} must be between 1 and the network's n_agents_max {max}"
-            );
-        }
         let mut learner = Learner::new(
             config.net.clone(),
             config.learner.clone(),
@@ -212,59 +151,60 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         ));
         config.agent_counts = learner.agent_counts().to_vec();
     }
-    anyhow::ensure!(config.n_envs > 0, "n_envs must be positive");
     fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let json = serde_json::to_string_pretty(&config).expect("the config serialises");
-    fs::write(&saved_config, json + "\n")
-        .with_context(|| format!("writing {}", saved_config.display()))?;
+    let building = || format!("building the {} environment", task.name());
+    if task == TrainTask::Meta {
+        let (low, meta) = meta::low_level(&config, &mut learner)?;
+        config.meta.base_weight = Some(meta.weight.base.clone());
+        learner.set_meta(meta.clone());
+        write_config(&saved_config, &config)?;
+        let mut collector = config.meta_collector(low, meta.weight.base).with_context(building)?;
+        restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
+        return train(collector, learner, &config, dir, cmd.resume);
+    }
+    write_config(&saved_config, &config)?;
+    let mut collector = config.pool_collector(task).with_context(building)?;
+    restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
+    train(collector, learner, &config, dir, cmd.resume)
+}
 
-    let weight = config.shaping.unwrap_or(match task {
-        Task::Formation => 20.0,
-        Task::PathFinding | Task::Meta => 0.0,
-    });
-    let shaping = (weight != 0.0).then_some(Shaping { weight, gamma: 1.0 });
-    let first = PoolEnv::new(task, &config.pool, config.env.clone(), config.agent_counts[0])
-        .with_context(|| format!("building the {:?} environment", cmd.task))?
-        .with_shaping(shaping)
-        .with_reward_scale(config.reward_scale.unwrap_or(match task {
-            Task::Formation => 0.05,
-            Task::PathFinding | Task::Meta => 1.0,
-        }));
-    let counts = &config.agent_counts;
-    let envs = (0..config.n_envs)
-        .map(|e| first.with_agents(counts[e % counts.len()]))
-        .collect::<Result<Vec<_>, _>>()
-        .with_context(|| format!("building the {:?} environment", cmd.task))?;
-    let step_limit = config.env.step_limit.unwrap_or(3 * config.pool.size) as usize;
-    let mut collector = Collector::new(envs, step_limit);
+/// Writes the run's settings to `DIR/config.json`.
+fn write_config(path: &Path, config: &TrainConfig) -> anyhow::Result<()> {
+    let json = serde_json::to_string_pretty(config).expect("the config serialises");
+    fs::write(path, json + "\n").with_context(|| format!("writing {}", path.display()))
+}
 
-    if cmd.resume && !learner.restore_collection(&checkpoint, &mut collector).context("resuming")? {
+/// On resume, restores the collection state of the checkpoint (warning when it has none).
+fn restore<E: MarlEnv + Send>(
+    learner: &mut Learner,
+    collector: &mut Collector<E>,
+    checkpoint: &Path,
+    resume: bool,
+) -> anyhow::Result<()> {
+    if resume && !learner.restore_collection(checkpoint, collector).context("resuming")? {
         util::warn(&format!(
             "warning: {} has no collection state (an older or hand-made checkpoint): the replay \
              buffers refill before training goes on",
             checkpoint.display()
         ));
     }
-    train(collector, learner, &config, dir, cmd.resume)
+    Ok(())
 }
 
-/// Reads a config file; the fields it leaves out take their defaults for `task`.
-fn read_config(path: &Path, task: Task) -> anyhow::Result<TrainConfig> {
+/// Reads a config file over `task`'s defaults.
+fn read_config(path: &Path, task: TrainTask) -> anyhow::Result<TrainConfig> {
     let text =
         fs::read_to_string(path).with_context(|| format!("reading config {}", path.display()))?;
-    let parse_error = || format!("parsing config {}", path.display());
-    // Typed first, so that errors name the line and the field.
-    let config: TrainConfig = serde_json::from_str(&text).with_context(parse_error)?;
-    let given: serde_json::Value = serde_json::from_str(&text).with_context(parse_error)?;
-    Ok(config.with_task_defaults(task, &given))
+    TrainConfig::from_json(&text, task)
+        .with_context(|| format!("parsing config {}", path.display()))
 }
 
 /// The collect/update loop with the progress bar, the metrics file and the checkpoints.
 /// `Learner::train` runs in chunks of `checkpoint_every × train_every` environment steps
 /// (about `checkpoint_every` updates once learning has started); a checkpoint is written after
 /// each chunk that crossed a multiple of `checkpoint_every` updates.
-fn train(
-    mut collector: Collector<PoolEnv>,
+fn train<E: MarlEnv + Send>(
+    mut collector: Collector<E>,
     mut learner: Learner,
     config: &TrainConfig,
     dir: &Path,
@@ -414,22 +354,24 @@ impl phalanx_rl::MetricSink for Sink {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use phalanx_rl::{TrainConfig, TrainTask};
 
     #[test]
-    fn formation_defaults_fill_only_what_the_file_leaves_out() {
-        let none = serde_json::Value::Null;
-        let formation = TrainConfig::default().with_task_defaults(Task::Formation, &none);
+    fn task_defaults_fill_only_what_the_file_leaves_out() {
+        let formation = TrainConfig::for_task(TrainTask::Formation);
         assert_eq!(formation.agent_counts, [3, 4, 5]);
         assert_eq!((formation.n_envs, formation.env.step_limit), (15, Some(64)));
-        let path = TrainConfig::default().with_task_defaults(Task::PathFinding, &none);
-        assert_eq!(path, TrainConfig::default());
+        assert_eq!(TrainConfig::for_task(TrainTask::PathFinding), TrainConfig::default());
 
-        let text = r#"{"n_envs": 6, "env": {"step_limit": null}}"#;
-        let given: serde_json::Value = serde_json::from_str(text).unwrap();
-        let config: TrainConfig = serde_json::from_str(text).unwrap();
-        let config = config.with_task_defaults(Task::Formation, &given);
+        let text = r#"{"n_envs": 6, "env": {"step_limit": null}, "shaping": null}"#;
+        let config = TrainConfig::from_json(text, TrainTask::Formation).unwrap();
         assert_eq!(config.agent_counts, [3, 4, 5]);
         assert_eq!((config.n_envs, config.env.step_limit), (6, None));
+        assert_eq!(config.shaping_for(TrainTask::Formation), 20.0);
+        assert_eq!(config.env.fov, 9);
+        let err = TrainConfig::from_json("{\n  \"n_envs\": \"six\"\n}", TrainTask::Meta);
+        assert!(err.unwrap_err().to_string().contains("line 2"));
+        let err = TrainConfig::from_json(r#"{"agent_counts": [9]}"#, TrainTask::Meta);
+        assert!(err.unwrap_err().to_string().contains("agent count 9"));
     }
 }

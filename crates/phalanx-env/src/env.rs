@@ -15,6 +15,8 @@ use crate::marl::{ObsBuffers, ObsShape};
 use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, VECTOR_LEN};
 use crate::{Clip, EnvConfig, EnvError, LeaderRule, Task};
 
+mod frame;
+
 /// Most agents in one episode: two `u16` values are reserved in the occupancy grid.
 pub const MAX_AGENTS: usize = u16::MAX as usize - 1;
 
@@ -135,6 +137,8 @@ pub struct Env {
     rank: Vec<u16>,
     chosen: Vec<Action>,
     n_chosen: usize,
+    /// The formation frame of the hierarchy (empty until [`Env::update_frame`]).
+    frame: frame::Frame,
 }
 
 impl Env {
@@ -178,6 +182,7 @@ impl Env {
             rank: Vec::new(),
             chosen: Vec::new(),
             n_chosen: 0,
+            frame: frame::Frame::default(),
         })
     }
 
@@ -185,6 +190,12 @@ impl Env {
     #[inline]
     pub fn config(&self) -> &EnvConfig {
         &self.config
+    }
+
+    /// Sets the meta task's formation weight `w_f` for the following steps (the weight of an
+    /// episode can differ from the configured one, e.g. for a weight-conditioned meta policy).
+    pub fn set_formation_weight(&mut self, formation_weight: f64) {
+        self.config.formation_weight = formation_weight;
     }
 
     /// Sizes of one agent's observation: the four channels of the field of view, the goal
@@ -551,10 +562,17 @@ impl Env {
     /// # Panics
     /// If the buffers do not have this episode's agent count and [`Env::obs_shape`].
     pub fn observe(&self, out: &mut ObsBuffers) {
+        self.observe_clipped(out, self.config.task.clip());
+    }
+
+    /// [`Env::observe`] with the mask of `clip` instead of the task's.
+    ///
+    /// # Panics
+    /// As [`Env::observe`].
+    pub fn observe_clipped(&self, out: &mut ObsBuffers, clip: Clip) {
         assert_eq!(out.n_agents, self.pos.len(), "buffers of another agent count");
         assert_eq!(out.shape, self.obs_shape(), "buffers of another shape");
         let shape = out.shape;
-        let clip = self.config.task.clip();
         for (i, ((grid, vector), mask)) in out
             .grid
             .chunks_exact_mut(shape.grid_len())
@@ -624,10 +642,7 @@ impl Env {
 
     /// Writes agent `agent`'s scaled goal vector `(dx/‖d‖, dy/‖d‖, ‖d‖/(‖d‖ + F))`.
     pub fn write_vector(&self, agent: usize, out: &mut [f32]) {
-        let [ux, uy, norm] = self.goal_vector(agent);
-        out[0] = ux as f32;
-        out[1] = uy as f32;
-        out[2] = (norm / (norm + self.fov as f64)) as f32;
+        frame::write_goal_vector(self.pos[agent], self.goals[agent], self.fov, out);
     }
 
     /// Writes agent `agent`'s action mask under `clip`, in action index order.

@@ -10,6 +10,8 @@
 //!   simulator with a task's rewards, clipping and leader order, [`PoolEnv`] the low-level
 //!   training environment on the pool; [`step_lockstep`] steps many environments in
 //!   parallel, allocating nothing.
+//! - [`HierEnv`] is the hierarchy's episode: the meta task with the meta, path-finding and
+//!   formation-frame observations of every step (`docs/hierarchy.md`).
 //! - [`TrainPool`] and [`EvalMaps`] keep training and evaluation maps apart by
 //!   construction; [`formation_instance`] makes formation-training episodes.
 //! - [`sim`] is the `phalanx sim` command.
@@ -31,6 +33,7 @@
 mod config;
 mod env;
 mod formation;
+mod hier;
 mod marl;
 pub mod obs;
 mod pool;
@@ -40,6 +43,7 @@ mod task;
 pub use config::{Clip, EnvConfig, EnvError, LeaderRule, Task};
 pub use env::{Env, MAX_AGENTS, Step, StepInfo};
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
+pub use hier::{Choice, HierEnv};
 pub use marl::{MarlEnv, ObsBuffers, ObsShape, StepOut, step_lockstep};
 pub use pool::{EvalConfig, EvalMaps, PoolConfig, TrainPool, eval_seed, train_seed};
 pub use task::{PoolEnv, Shaping, TaskEnv};

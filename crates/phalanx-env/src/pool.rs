@@ -9,7 +9,7 @@
 
 use phalanx_core::{Grid, Instance};
 use phalanx_gen::{GenConfig, random_formation, region_side};
-use rand::Rng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
@@ -169,6 +169,38 @@ impl EvalMaps {
     /// The generator seed of instance `index`.
     pub fn seed(&self, index: u64) -> u64 {
         eval_seed(self.config.seed, index)
+    }
+
+    /// `count` formation-training episodes of `n_agents` ([`crate::formation_instance`]) on
+    /// the stream's fresh maps, one per map, in index order, seeded by the map's seed; a map
+    /// without room for one is skipped.
+    ///
+    /// # Errors
+    /// If the generator refuses the settings, or fewer than `count` maps of the first
+    /// `10 · count + 100` have room for the team.
+    pub fn formation_instances(
+        &self,
+        n_agents: usize,
+        count: usize,
+    ) -> Result<Vec<Instance>, EnvError> {
+        let mut res = Vec::with_capacity(count);
+        let tries = 10 * count as u64 + 100;
+        for index in 0..tries {
+            if res.len() == count {
+                break;
+            }
+            let generated = self.instance(index)?;
+            let mut rng = ChaCha8Rng::seed_from_u64(self.seed(index));
+            if let Ok(instance) =
+                crate::formation_instance(generated.grid(), n_agents, self.config.fov, &mut rng)
+            {
+                res.push(instance);
+            }
+        }
+        if res.len() < count {
+            return Err(EnvError::Placement { n_agents, attempts: tries as u32 });
+        }
+        Ok(res)
     }
 
     /// Generates instance `index`.

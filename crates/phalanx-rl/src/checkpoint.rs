@@ -23,6 +23,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::hierarchy::MetaInfo;
 use crate::learner::{Counters, Learner, LearnerConfig};
 use crate::net::{QNet, QNetConfig};
 use crate::policy::Policy;
@@ -97,6 +98,10 @@ pub struct Header {
     pub rng_stream: u64,
     /// ChaCha8 word position.
     pub rng_word_pos: [u64; 2],
+    /// For a meta policy: its formation weights and the low-level policies it was trained
+    /// over.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub meta: Option<MetaInfo>,
 }
 
 impl Learner {
@@ -111,6 +116,7 @@ impl Learner {
             rng_seed: self.rng.get_seed(),
             rng_stream: self.rng.get_stream(),
             rng_word_pos: [(word_pos >> 64) as u64, word_pos as u64],
+            meta: self.meta.clone(),
         }
     }
 
@@ -182,6 +188,7 @@ impl Learner {
             .from_bytes(Bytes::from_bytes_vec(optim))
             .map_err(|err| record_error(path, "optimizer", err))?;
         learner.counters = file.header.counters;
+        learner.meta = file.header.meta.clone();
         let mut rng = ChaCha8Rng::from_seed(file.header.rng_seed);
         rng.set_stream(file.header.rng_stream);
         let [high, low] = file.header.rng_word_pos;

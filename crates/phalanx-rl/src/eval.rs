@@ -1,24 +1,29 @@
-//! Greedy evaluation of a policy on given instances, many episodes in lockstep.
+//! Greedy evaluation of a learned policy on given instances, many episodes in lockstep.
 //!
-//! Each instance runs as one episode of a [`TaskEnv`] of the task (its rewards, clipping and
-//! leader rule), the policy acting greedily (ε = 0) in leader order with action messages, until
-//! the task terminates (all agents on their goals; for [`Task::Formation`], `L_f = 0`) or the
-//! step limit truncates it. Instances go through in batches of `batch` episodes, one batched
-//! policy call per step; an episode that has ended stops stepping while its batch finishes.
-//! Greedy acting is deterministic, and the random actions of extra [`Rollouts`] come from
-//! seeded streams, so the figures depend only on the policy, the instances and the seed (not
-//! on the thread count).
+//! A low-level policy runs each instance as one episode of a [`TaskEnv`] of its task (its
+//! rewards, clipping and leader rule); the hierarchy ([`Hierarchy`]) runs it as a
+//! [`HierEnv`] (the meta policy choosing each agent's low-level policy every step). Policies
+//! act greedily (ε = 0) in leader order with action messages, until the task terminates (all
+//! agents on their goals; for [`Task::Formation`], `L_f = 0`) or the step limit truncates
+//! it. Instances go through in batches of `batch` episodes, one batched policy call per step;
+//! an episode that has ended stops stepping while its batch finishes.
+//!
+//! Every rollout is recorded as a [`Plan`] and scored like any planner's plan: by
+//! [`phalanx_core::validate`] (the environment never makes an invalid one) and
+//! [`PlanMetrics`]. Greedy acting is deterministic, and the random actions of extra
+//! [`Rollouts`] come from seeded streams, so the figures depend only on the policy, the
+//! instances and the seed (not on the thread count).
 
-use phalanx_core::Instance;
-use phalanx_env::{EnvConfig, EnvError, Task};
+use phalanx_core::{Instance, Plan, PlanMetrics, ViolationKind, validate};
+use phalanx_env::{Choice, EnvConfig, EnvError, HierEnv, ObsBuffers, StepOut, Task, TaskEnv};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use crate::hierarchy::Hierarchy;
 use crate::policy::{Policy, row_offsets};
-use phalanx_env::{ObsBuffers, TaskEnv};
 
-/// What one evaluated episode measured.
+/// What one evaluated episode measured, with its plan.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct EvalEpisode {
     /// Agents.
@@ -32,16 +37,32 @@ pub struct EvalEpisode {
     pub lower_bound: u32,
     /// Moves cancelled by collisions.
     pub collisions: u64,
-    /// Table II formation loss: `Σ_{t=1..steps} L_f(t)` divided by the map side.
+    /// Sum of costs ([`PlanMetrics::sum_of_costs`]).
+    pub sum_of_costs: usize,
+    /// Table II formation loss: `Σ_{t=1..steps} L_f(t)` divided by the map side
+    /// ([`PlanMetrics::formation_loss`]).
     pub formation_loss: f64,
+    /// Mean per-step `L_f` ([`PlanMetrics::formation_loss_mean`]).
+    pub formation_loss_mean: f64,
+    /// `L_f` at the start.
+    pub start_formation_loss: f64,
     /// `L_f` after the last step.
     pub final_formation_loss: f64,
+    /// For the hierarchy, the fraction of agent-steps that ran the formation policy.
+    pub formation_share: Option<f64>,
+    /// The joint positions of every step, starts first.
+    #[serde(skip)]
+    pub plan: Plan,
+    /// For the hierarchy, each step's choices (`[steps, n_agents]`, [`Choice`] indices).
+    #[serde(skip)]
+    pub choices: Option<Vec<u8>>,
 }
 
 /// Test-time rollouts (SPEC §6, the paper's protocol for decentralised methods): each
 /// instance is played `count` times, the first greedily, the others with a random allowed
-/// action taken with probability `epsilon` per agent and step; the best rollout counts
-/// (solved before unsolved, then fewer steps, then lower formation loss).
+/// action taken with probability `epsilon` per agent and step (in the hierarchy: an action
+/// allowed by the agent's chosen low-level policy, the meta choice staying greedy); the best
+/// rollout counts (solved before unsolved, then fewer steps, then lower formation loss).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Rollouts {
     /// Rollouts per instance (at least 1).
@@ -74,13 +95,71 @@ pub fn evaluate(
     rollouts: Rollouts,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
+    let mut play = |chunk: &[Instance], epsilon, rng: &mut ChaCha8Rng| {
+        play_low_level(policy, task, env, chunk, epsilon, rng)
+    };
+    evaluate_with(&mut play, instances, batch, rollouts, progress)
+}
+
+/// One rollout of `policy` on every instance at the random-action rate `rollouts.epsilon`
+/// (ε = 1: a uniformly random allowed action every step), the random draws from
+/// `rollouts.seed`; `rollouts.count` is ignored.
+///
+/// # Errors
+/// If the simulator refuses an instance.
+pub fn evaluate_at(
+    policy: &mut Policy,
+    task: Task,
+    env: &EnvConfig,
+    instances: &[Instance],
+    batch: usize,
+    rollouts: Rollouts,
+) -> Result<Vec<EvalEpisode>, EnvError> {
+    let mut rng = ChaCha8Rng::seed_from_u64(rollouts.seed);
+    let mut res = Vec::with_capacity(instances.len());
+    for chunk in instances.chunks(batch.max(1)) {
+        res.extend(play_low_level(policy, task, env, chunk, rollouts.epsilon, &mut rng)?);
+    }
+    Ok(res)
+}
+
+/// [`evaluate`] for the hierarchy: every instance as a meta-task episode ([`HierEnv`]).
+///
+/// # Errors
+/// If the simulator refuses an instance (field of view, agent count).
+pub fn evaluate_hierarchy(
+    hierarchy: &mut Hierarchy,
+    env: &EnvConfig,
+    instances: &[Instance],
+    batch: usize,
+    rollouts: Rollouts,
+    progress: &mut dyn FnMut(usize),
+) -> Result<Vec<EvalEpisode>, EnvError> {
+    let mut play = |chunk: &[Instance], epsilon, rng: &mut ChaCha8Rng| {
+        play_hierarchy(hierarchy, env, chunk, epsilon, rng)
+    };
+    evaluate_with(&mut play, instances, batch, rollouts, progress)
+}
+
+/// One rollout of a chunk of instances in lockstep: `(chunk, epsilon, rng)`.
+type Play<'a> =
+    dyn FnMut(&[Instance], f64, &mut ChaCha8Rng) -> Result<Vec<EvalEpisode>, EnvError> + 'a;
+
+/// The rollouts of every chunk, keeping each instance's best.
+fn evaluate_with(
+    play: &mut Play<'_>,
+    instances: &[Instance],
+    batch: usize,
+    rollouts: Rollouts,
+    progress: &mut dyn FnMut(usize),
+) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut res: Vec<EvalEpisode> = Vec::with_capacity(instances.len());
     for (c, chunk) in instances.chunks(batch.max(1)).enumerate() {
-        let mut best = play(policy, task, env, chunk, 0.0, &mut ChaCha8Rng::seed_from_u64(0))?;
+        let mut best = play(chunk, 0.0, &mut ChaCha8Rng::seed_from_u64(0))?;
         for r in 1..rollouts.count {
             let mut rng = ChaCha8Rng::seed_from_u64(rollouts.seed);
             rng.set_stream(((c as u64) << 20) | r as u64);
-            let again = play(policy, task, env, chunk, rollouts.epsilon, &mut rng)?;
+            let again = play(chunk, rollouts.epsilon, &mut rng)?;
             for (kept, new) in best.iter_mut().zip(again) {
                 if better(&new, kept) {
                     *kept = new;
@@ -98,8 +177,100 @@ fn better(a: &EvalEpisode, b: &EvalEpisode) -> bool {
     (!a.success, a.steps, a.formation_loss) < (!b.success, b.steps, b.formation_loss)
 }
 
-/// One rollout of every instance of `chunk` in lockstep.
-fn play(
+/// The trajectories of a chunk's episodes while they run.
+struct Tracks<'a> {
+    chunk: &'a [Instance],
+    plans: Vec<Plan>,
+    collisions: Vec<u64>,
+    terminated: Vec<bool>,
+    running: Vec<bool>,
+    lower_bounds: Vec<u32>,
+    choices: Option<Vec<Vec<u8>>>,
+}
+
+impl<'a> Tracks<'a> {
+    /// Episodes at their starts; `lower_bounds[e]` is episode `e`'s largest start-to-goal
+    /// distance, `on_goal[e]` whether it starts solved.
+    fn new(chunk: &'a [Instance], lower_bounds: Vec<u32>, solved: &[bool], hier: bool) -> Self {
+        let plans = chunk
+            .iter()
+            .map(|inst| {
+                let mut plan = Plan::new(inst.n_agents());
+                plan.push(inst.starts());
+                plan
+            })
+            .collect();
+        Tracks {
+            chunk,
+            plans,
+            collisions: vec![0; chunk.len()],
+            terminated: solved.to_vec(),
+            running: solved.iter().map(|&done| !done).collect(),
+            lower_bounds,
+            choices: hier.then(|| vec![Vec::new(); chunk.len()]),
+        }
+    }
+
+    /// Records episode `e`'s step.
+    fn record(&mut self, e: usize, out: &StepOut, positions: &[phalanx_core::Cell]) {
+        self.plans[e].push(positions);
+        self.collisions[e] += u64::from(out.collisions);
+        self.terminated[e] = out.terminated;
+        self.running[e] = !(out.terminated || out.truncated);
+    }
+
+    /// Scores every plan with the validator and the plan metrics. A rollout that stops short
+    /// of the goals (truncated, or a formation episode) breaks only the validator's last
+    /// rule, `GoalNotReached`: an unsuccessful plan, not an invalid one.
+    ///
+    /// # Panics
+    /// If a plan breaks any other rule: the environment resolves every conflict, so that is a
+    /// bug.
+    fn finish(self) -> Vec<EvalEpisode> {
+        let mut choices = self.choices.map(Vec::into_iter);
+        self.chunk
+            .iter()
+            .zip(self.plans)
+            .enumerate()
+            .map(|(e, (instance, plan))| {
+                if let Err(violation) = validate(instance, &plan)
+                    && !matches!(violation.kind, ViolationKind::GoalNotReached { .. })
+                {
+                    panic!("a learned rollout broke the rules: {violation}");
+                }
+                let m = PlanMetrics::of(instance, &plan);
+                let choices = choices.as_mut().map(|it| it.next().expect("one per episode"));
+                let formation_share = choices.as_ref().map(|c| {
+                    let formation = c.iter().filter(|&&it| it == Choice::Formation as u8).count();
+                    formation as f64 / c.len().max(1) as f64
+                });
+                EvalEpisode {
+                    n_agents: instance.n_agents(),
+                    success: self.terminated[e],
+                    steps: plan.horizon(),
+                    lower_bound: self.lower_bounds[e],
+                    collisions: self.collisions[e],
+                    sum_of_costs: m.sum_of_costs,
+                    formation_loss: m.formation_loss,
+                    formation_loss_mean: m.formation_loss_mean,
+                    start_formation_loss: m.formation_loss_per_step[0],
+                    final_formation_loss: m.formation_loss_per_step.last().copied().unwrap_or(0.0),
+                    formation_share,
+                    plan,
+                    choices,
+                }
+            })
+            .collect()
+    }
+}
+
+/// The largest start-to-goal BFS distance of the episode `env` runs.
+fn lower_bound(env: &phalanx_env::Env) -> u32 {
+    (0..env.n_agents()).map(|a| env.cost_to_go(a)).max().unwrap_or(0)
+}
+
+/// One rollout of a low-level policy on every instance of `chunk` in lockstep.
+fn play_low_level(
     policy: &mut Policy,
     task: Task,
     env: &EnvConfig,
@@ -109,50 +280,82 @@ fn play(
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut envs = Vec::with_capacity(chunk.len());
     let mut obs = Vec::with_capacity(chunk.len());
-    let mut episodes = Vec::with_capacity(chunk.len());
     for instance in chunk {
         let mut task_env = TaskEnv::new(task, env.clone(), instance.n_agents())?;
         let mut buffers = ObsBuffers::new(instance.n_agents(), task_env.obs_shape());
         task_env.reset_to(instance, &mut buffers)?;
-        let sim = task_env.env();
-        let lower_bound = (0..instance.n_agents()).map(|a| sim.cost_to_go(a)).max();
-        episodes.push(EvalEpisode {
-            n_agents: instance.n_agents(),
-            success: sim.is_done(),
-            steps: 0,
-            lower_bound: lower_bound.unwrap_or(0),
-            collisions: 0,
-            formation_loss: 0.0,
-            final_formation_loss: sim.formation_loss(),
-        });
         envs.push(task_env);
         obs.push(buffers);
     }
+    let bounds = envs.iter().map(|it| lower_bound(it.env())).collect();
+    let solved: Vec<bool> = envs.iter().map(|it| it.env().is_done()).collect();
+    let mut tracks = Tracks::new(chunk, bounds, &solved, false);
     let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
-    let mut running: Vec<bool> = episodes.iter().map(|it| !it.success).collect();
     let mut actions = vec![0_u8; chunk.iter().map(Instance::n_agents).sum()];
     policy.reset();
-    while running.contains(&true) {
+    while tracks.running.contains(&true) {
         policy.act_batch(&obs, epsilon, rng, &mut actions, None);
         for (e, task_env) in envs.iter_mut().enumerate() {
-            let (at, n) = (offsets[e], chunk[e].n_agents());
-            if running[e] {
+            if tracks.running[e] {
+                let (at, n) = (offsets[e], chunk[e].n_agents());
                 let out = task_env.step(&actions[at..at + n], &mut obs[e]);
-                let episode = &mut episodes[e];
-                let loss = task_env.env().formation_loss();
-                episode.steps += 1;
-                episode.collisions += u64::from(out.collisions);
-                episode.formation_loss += loss;
-                episode.final_formation_loss = loss;
-                episode.success = out.terminated;
-                running[e] = !(out.terminated || out.truncated);
+                tracks.record(e, &out, task_env.env().positions());
             }
         }
     }
-    for (episode, instance) in episodes.iter_mut().zip(chunk) {
-        episode.formation_loss /= f64::from(instance.grid().side());
+    Ok(tracks.finish())
+}
+
+/// One rollout of the hierarchy on every instance of `chunk` in lockstep: the meta policy
+/// chooses greedily, the low level acts with random actions at rate `epsilon`.
+fn play_hierarchy(
+    hierarchy: &mut Hierarchy,
+    env: &EnvConfig,
+    chunk: &[Instance],
+    epsilon: f64,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<EvalEpisode>, EnvError> {
+    let conditioned = hierarchy.weight.conditioned();
+    let mut envs = Vec::with_capacity(chunk.len());
+    let mut obs = Vec::with_capacity(chunk.len());
+    for instance in chunk {
+        let n = instance.n_agents();
+        let mut hier = HierEnv::new(env.clone(), n, conditioned)?;
+        let mut buffers = ObsBuffers::new(n, hier.meta_shape());
+        let multiple = hierarchy.multiple;
+        let w_f = multiple * hierarchy.weight.base_for(n);
+        hier.reset_to(instance, w_f, multiple, &mut buffers)?;
+        envs.push(hier);
+        obs.push(buffers);
     }
-    Ok(episodes)
+    let bounds = envs.iter().map(|it| lower_bound(it.env())).collect();
+    let solved: Vec<bool> = envs.iter().map(|it| it.env().is_done()).collect();
+    let mut tracks = Tracks::new(chunk, bounds, &solved, true);
+    let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
+    let rows = chunk.iter().map(Instance::n_agents).sum();
+    let (mut choices, mut actions) = (vec![0_u8; rows], vec![0_u8; rows]);
+    hierarchy.meta.reset();
+    hierarchy.low.reset();
+    let mut greedy = ChaCha8Rng::seed_from_u64(0);
+    while tracks.running.contains(&true) {
+        hierarchy.meta.act_batch(&obs, 0.0, &mut greedy, &mut choices, None);
+        for (e, hier) in envs.iter_mut().enumerate() {
+            let (at, n) = (offsets[e], chunk[e].n_agents());
+            hier.set_choices(&choices[at..at + n]);
+        }
+        hierarchy.low.act_batch(&mut envs, &choices, epsilon, rng, &mut actions);
+        for (e, hier) in envs.iter_mut().enumerate() {
+            if tracks.running[e] {
+                let (at, n) = (offsets[e], chunk[e].n_agents());
+                let out = hier.step(&actions[at..at + n], &mut obs[e]);
+                tracks.record(e, &out, hier.env().positions());
+                if let Some(all) = tracks.choices.as_mut() {
+                    all[e].extend_from_slice(&choices[at..at + n]);
+                }
+            }
+        }
+    }
+    Ok(tracks.finish())
 }
 
 /// Aggregates of [`evaluate`]'s episodes.

@@ -18,6 +18,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::hierarchy::MetaInfo;
 use crate::net::{QNet, QNetConfig, tensor3, to_vec};
 use crate::policy::Policy;
 use crate::replay::{Batch, Episode, Replay, SequenceMode};
@@ -134,6 +135,8 @@ pub struct Learner {
     pub(crate) replays: Vec<Replay>,
     pub(crate) rng: ChaCha8Rng,
     pub(crate) counters: Counters,
+    /// For a meta policy: what its checkpoints and policy files record of the hierarchy.
+    pub(crate) meta: Option<MetaInfo>,
 }
 
 impl Learner {
@@ -180,6 +183,7 @@ impl Learner {
             replays,
             rng,
             counters: Counters::default(),
+            meta: None,
         }
     }
 
@@ -196,6 +200,17 @@ impl Learner {
     /// The team sizes the learner trains, ascending.
     pub fn agent_counts(&self) -> &[usize] {
         &self.agent_counts
+    }
+
+    /// For a meta policy, its formation weights and low-level policies.
+    pub fn meta(&self) -> Option<&MetaInfo> {
+        self.meta.as_ref()
+    }
+
+    /// Record the hierarchy a meta policy is trained in (written with every checkpoint and
+    /// policy file).
+    pub fn set_meta(&mut self, meta: MetaInfo) {
+        self.meta = Some(meta);
     }
 
     /// Run counters.

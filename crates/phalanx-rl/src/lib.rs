@@ -6,6 +6,10 @@
 //! - [`learner`]: VDN + double DQN with a target network and masked actions;
 //! - [`policy`]: acting, one episode or many in lockstep (batched inference, leader order);
 //! - [`eval`]: greedy evaluation on given instances, in lockstep batches;
+//! - [`hierarchy`]: the meta policy's low level over the two frozen policies and its training
+//!   environment ([`MetaEnv`]);
+//! - [`weight`]: the balancing weight `w_f` of Eq. 14;
+//! - [`settings`]: a training run's settings, the task defaults and the collectors they build;
 //! - [`train`]: the collect/update loop ([`Collector`]) and its metric names;
 //! - [`checkpoint`]: atomic checkpoints of the whole learner with typed load errors.
 //!
@@ -29,17 +33,26 @@
 
 pub mod checkpoint;
 pub mod eval;
+pub mod hierarchy;
 pub mod learner;
 pub mod net;
 pub mod policy;
 pub mod replay;
 mod resume;
+pub mod settings;
 pub mod train;
+pub mod weight;
 
 pub use checkpoint::CheckpointError;
+pub use eval::evaluate_hierarchy;
 pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
+pub use hierarchy::{
+    FormationWeight, Hierarchy, LowLevel, MetaEnv, MetaInfo, Multiples, PolicyRef,
+};
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
 pub use net::{EncoderConfig, QNet, QNetConfig, RecurrentState};
 pub use policy::Policy;
 pub use replay::{Batch, Episode, Replay, SequenceMode};
+pub use settings::{MetaSettings, SettingsError, TrainConfig, TrainTask};
 pub use train::{Collector, MetricSink, metrics};
+pub use weight::{WeightConfig, WeightEstimate, estimate_weight};

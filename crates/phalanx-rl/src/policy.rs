@@ -36,6 +36,11 @@ impl Policy {
         &self.config
     }
 
+    /// The device the network runs on.
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+
     /// Replace the weights, keeping the recurrent state (a learner's policy after an update).
     pub fn set_net(&mut self, net: QNet) {
         self.net = net;
@@ -157,13 +162,22 @@ impl Policy {
         epsilon: f64,
         rng: &mut ChaCha8Rng,
         actions: &mut [u8],
-        q_out: Option<&mut [f32]>,
+        mut q_out: Option<&mut [f32]>,
     ) {
         let obs: Vec<&ObsBuffers> = obs.iter().collect();
+        let rows: usize = obs.iter().map(|env| env.n_agents).sum();
+        assert_eq!(actions.len(), rows, "one action per agent");
+        if let Some(q) = &q_out {
+            assert_eq!(q.len(), rows * self.config.n_actions, "one Q row per agent");
+        }
         let features = self.recurrent_step(&obs);
-        let turns =
-            Turns { policies: &[&*self], features: &[features], obs: &[&obs], choice: &|_| 0 };
-        turns.act(epsilon, rng, actions, q_out);
+        let mut turns = Turns::new(&obs, &self.config);
+        let max_agents = obs.iter().map(|env| env.n_agents).max().unwrap_or(0);
+        for rank in 0..max_agents {
+            let acting: Vec<usize> = (0..obs.len()).filter(|&e| rank < obs[e].n_agents).collect();
+            let q = q_out.as_deref_mut();
+            turns.act(rank, &acting, self, &features, &obs, epsilon, rng, actions, q);
+        }
     }
 
     /// The recurrent step of every agent of every episode of `obs` (one batched pass; the
@@ -206,106 +220,90 @@ impl Policy {
     }
 }
 
-/// One step's heads in leader order over a batch of episodes, each agent through the head of
-/// the policy it chose: `policies[choice(row)]` reading `features[choice(row)]` (the
-/// features of [`Policy::recurrent_step`] of that policy on `obs[choice(row)]`) and masked
-/// by that policy's observation. The policies share the action count and the agent slots, so
-/// the message (the one-hot actions chosen at earlier ranks of the team, whichever policy
-/// chose them) means the same to every one; the acting order is `obs[0]`'s.
-pub(crate) struct Turns<'a> {
-    /// The policies agents choose from.
-    pub policies: &'a [&'a Policy],
-    /// Each policy's features of the batch, `[Σ N_e, 1, H]`.
-    pub features: &'a [Tensor<3>],
-    /// Each policy's observations of the batch's episodes (same agent counts and order).
-    pub obs: &'a [&'a [&'a ObsBuffers]],
-    /// The policy of each row (`Σ N_e` rows, episode after episode).
-    pub choice: &'a dyn Fn(usize) -> usize,
+/// One step's heads in leader order over a batch of episodes, rank by rank: the caller
+/// hands each group of agents (those at one rank of some episodes) to the policy they run,
+/// and the turns carry each team's message (the one-hot actions chosen at earlier ranks,
+/// whichever policy chose them) from rank to rank. Every policy of a step must share the
+/// action count and agent slots, so the message means the same to every one.
+pub(crate) struct Turns {
+    offsets: Vec<usize>,
+    /// `[E, M]`, one message per episode.
+    messages: Vec<f32>,
+    n_actions: usize,
+    msg_dim: usize,
 }
 
-impl Turns<'_> {
-    /// At rank `k`, the agents ranked `k` of every episode go through their policy's head
-    /// together, each with the message of the actions its team chose at ranks `0..k`; then
-    /// ε-greedy among the allowed actions. Writes `actions[row]` and, when given, the masked
-    /// Q-values `q_out[row]`. Random draws happen rank by rank, episode by episode.
+impl Turns {
+    /// Turns for the episodes of `obs` (their agent counts), for policies of `config`'s
+    /// action count and agent slots.
+    pub(crate) fn new(obs: &[&ObsBuffers], config: &QNetConfig) -> Turns {
+        Turns {
+            offsets: row_offsets(obs.iter().map(|env| env.n_agents)),
+            messages: vec![0.0; obs.len() * config.message_dim()],
+            n_actions: config.n_actions,
+            msg_dim: config.message_dim(),
+        }
+    }
+
+    /// The agents at `rank` of the episodes `episodes` (ascending, each with more than `rank`
+    /// agents) go through `policy`'s head together (`features`: its recurrent features of the
+    /// whole batch, `[Σ N_e, 1, H]`; `obs`: its observations, for the order and the masks),
+    /// each with its team's message; then ε-greedy among the allowed actions, random draws
+    /// episode by episode. Writes `actions[row]` and, when given, the masked Q-values
+    /// `q_out[row]`.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn act(
-        &self,
+        &mut self,
+        rank: usize,
+        episodes: &[usize],
+        policy: &Policy,
+        features: &Tensor<3>,
+        obs: &[&ObsBuffers],
         epsilon: f64,
         rng: &mut ChaCha8Rng,
         actions: &mut [u8],
         mut q_out: Option<&mut [f32]>,
     ) {
-        let cfg = self.policies[0].config();
-        let (n_actions, msg_dim) = (cfg.n_actions, cfg.message_dim());
-        for policy in self.policies {
-            let other = policy.config();
-            assert_eq!(
-                (other.n_actions, other.message_dim()),
-                (n_actions, msg_dim),
-                "policies differ"
-            );
+        let (n_actions, msg_dim) = (self.n_actions, self.msg_dim);
+        let cfg = policy.config();
+        assert_eq!((cfg.n_actions, cfg.message_dim()), (n_actions, msg_dim), "policies differ");
+        if episodes.is_empty() {
+            return;
         }
-        let device = &self.policies[0].device;
-        let obs = self.obs[0];
-        let offsets = row_offsets(obs.iter().map(|env| env.n_agents));
-        let rows: usize = obs.iter().map(|env| env.n_agents).sum();
-        assert_eq!(actions.len(), rows, "one action per agent");
-        if let Some(q) = &q_out {
-            assert_eq!(q.len(), rows * n_actions, "one Q row per agent");
-        }
-        let mut messages = vec![0.0_f32; obs.len() * msg_dim]; // [E, M], one per episode
-        let max_agents = obs.iter().map(|env| env.n_agents).max().unwrap_or(0);
-        let mut q_rank = vec![0.0_f32; obs.len() * n_actions];
-        for rank in 0..max_agents {
-            let acting: Vec<usize> = (0..obs.len()).filter(|&e| rank < obs[e].n_agents).collect();
-            for (p, policy) in self.policies.iter().enumerate() {
-                let mine: Vec<usize> = acting
-                    .iter()
-                    .copied()
-                    .filter(|&e| (self.choice)(offsets[e] + obs[e].order[rank]) == p)
-                    .collect();
-                if mine.is_empty() {
-                    continue;
-                }
-                let n = mine.len();
-                let picked: Vec<i64> =
-                    mine.iter().map(|&e| (offsets[e] + obs[e].order[rank]) as i64).collect();
-                let picked = Tensor::<1, Int>::from_data(TensorData::new(picked, [n]), device);
-                let feat = self.features[p].clone().select(0, picked); // [n, 1, H]
-                let msg: Vec<f32> = mine
-                    .iter()
-                    .flat_map(|&e| messages[e * msg_dim..(e + 1) * msg_dim].iter().copied())
-                    .collect();
-                let msg = tensor3(msg, [n, 1, msg_dim], device); // [n, 1, M]
-                let q = to_vec(policy.net.head(feat, msg)); // [n, 1, A]
-                for (i, &e) in mine.iter().enumerate() {
-                    q_rank[e * n_actions..(e + 1) * n_actions]
-                        .copy_from_slice(&q[i * n_actions..(i + 1) * n_actions]);
+        let device = &policy.device;
+        let n = episodes.len();
+        let picked: Vec<i64> =
+            episodes.iter().map(|&e| (self.offsets[e] + obs[e].order[rank]) as i64).collect();
+        let picked = Tensor::<1, Int>::from_data(TensorData::new(picked, [n]), device);
+        let feat = features.clone().select(0, picked); // [n, 1, H]
+        let msg: Vec<f32> = episodes
+            .iter()
+            .flat_map(|&e| self.messages[e * msg_dim..(e + 1) * msg_dim].iter().copied())
+            .collect();
+        let msg = tensor3(msg, [n, 1, msg_dim], device); // [n, 1, M]
+        let mut q_all = to_vec(policy.net.head(feat, msg)); // [n, 1, A]
+        for (i, &e) in episodes.iter().enumerate() {
+            let agent_idx = obs[e].order[rank];
+            let mask = obs[e].mask_of(agent_idx);
+            let q = &mut q_all[i * n_actions..(i + 1) * n_actions];
+            for (value, &ok) in q.iter_mut().zip(mask) {
+                if !ok {
+                    *value = MASKED_Q;
                 }
             }
-            for &e in &acting {
-                let agent_idx = obs[e].order[rank];
-                let mask = self.obs[(self.choice)(offsets[e] + agent_idx)][e].mask_of(agent_idx);
-                let q = &mut q_rank[e * n_actions..(e + 1) * n_actions];
-                for (value, &ok) in q.iter_mut().zip(mask) {
-                    if !ok {
-                        *value = MASKED_Q;
-                    }
-                }
-                let action = if rng.random::<f64>() < epsilon {
-                    let allowed = mask.iter().filter(|&&ok| ok).count();
-                    let pick = rng.random_range(0..allowed);
-                    (0..n_actions).filter(|&a| mask[a]).nth(pick).expect("pick < allowed")
-                } else {
-                    masked_argmax(q, mask)
-                };
-                let row = offsets[e] + agent_idx;
-                actions[row] = action as u8;
-                if let Some(out) = q_out.as_deref_mut() {
-                    out[row * n_actions..(row + 1) * n_actions].copy_from_slice(q);
-                }
-                messages[e * msg_dim + agent_idx * n_actions + action] = 1.0;
+            let action = if rng.random::<f64>() < epsilon {
+                let allowed = mask.iter().filter(|&&ok| ok).count();
+                let pick = rng.random_range(0..allowed);
+                (0..n_actions).filter(|&a| mask[a]).nth(pick).expect("pick < allowed")
+            } else {
+                masked_argmax(q, mask)
+            };
+            let row = self.offsets[e] + agent_idx;
+            actions[row] = action as u8;
+            if let Some(out) = q_out.as_deref_mut() {
+                out[row * n_actions..(row + 1) * n_actions].copy_from_slice(q);
             }
+            self.messages[e * msg_dim + agent_idx * n_actions + action] = 1.0;
         }
     }
 }

@@ -1,0 +1,115 @@
+//! The hierarchy's parts for the commands that train or run it: the frozen low-level policies
+//! (given files or the shipped models) and the base formation weights (given, or estimated
+//! with Eq. 14 at the start of a run).
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use burn::tensor::Device;
+use phalanx_rl::checkpoint::{Header, load_policy_any};
+use phalanx_rl::{
+    FormationWeight, Hierarchy, Learner, LowLevel, MetaInfo, Policy, PolicyRef, TrainConfig,
+    estimate_weight,
+};
+
+use crate::{models, util};
+
+/// Loads the policy file of `name` from `path` or the shipped model, with its reference.
+pub(crate) fn load(path: Option<&Path>, name: &str) -> anyhow::Result<(Policy, PolicyRef)> {
+    let file = match path {
+        Some(path) if path.is_file() => path.to_path_buf(),
+        other => models::weights_file(other, name)?,
+    };
+    let bytes = std::fs::read(&file).with_context(|| format!("reading {}", file.display()))?;
+    let (policy, _) = load_policy_any(&file, &Device::flex())
+        .with_context(|| format!("loading the {name} policy"))?;
+    Ok((policy, PolicyRef::of(&file, &bytes)))
+}
+
+/// The low level of a meta run and what its files record: the policies of the settings (the
+/// shipped ones by default; on resume, the checkpoint's record must match them) and the base
+/// weights (the settings', else estimated now).
+pub(crate) fn low_level(
+    config: &TrainConfig,
+    learner: &mut Learner,
+) -> anyhow::Result<(LowLevel, MetaInfo)> {
+    let (pathfinding, pf_ref) = load(config.meta.pathfinding.as_deref(), "pathfinding")?;
+    let (mut formation, fm_ref) = load(config.meta.formation.as_deref(), "formation")?;
+    if let Some(saved) = learner.meta() {
+        for (what, saved, now) in [
+            ("path-finding", &saved.pathfinding, &pf_ref),
+            ("formation", &saved.formation, &fm_ref),
+        ] {
+            anyhow::ensure!(
+                saved.crc32 == now.crc32,
+                "the checkpoint's meta policy was trained over the {what} policy {} (crc32 {}), \
+                 not {} (crc32 {})",
+                saved.file,
+                saved.crc32,
+                now.file,
+                now.crc32
+            );
+        }
+    }
+    let base = match (&config.meta.base_weight, learner.meta()) {
+        (Some(base), _) => base.clone(),
+        (None, Some(saved)) => saved.weight.base.clone(),
+        (None, None) => {
+            util::warn("estimating the base weights w_f (Eq. 14) with the formation policy");
+            let estimates = estimate_weight(
+                &mut formation,
+                &config.agent_counts,
+                &config.meta.estimate,
+                &mut |_| {},
+            )
+            .context("estimating the base weights")?;
+            for e in &estimates {
+                util::warn(&format!(
+                    "w_f = {:.3} [{:.3}, {:.3}] for {} agents",
+                    e.weight, e.weight_interval[0], e.weight_interval[1], e.n_agents
+                ));
+            }
+            estimates.iter().map(|e| (e.n_agents, e.weight)).collect()
+        }
+    };
+    let weight = FormationWeight { base, multiples: config.meta.multiples };
+    let low = LowLevel::new(pathfinding, formation).context("the low-level policies")?;
+    Ok((low, MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref }))
+}
+
+/// The hierarchy of the meta policy `meta` (read from `file` with `header`) over the
+/// low-level policies it was trained over, or those given; run at `multiple` × `w_f`.
+///
+/// # Errors
+/// If the file is no meta policy, or a low-level policy cannot be read or is not the one
+/// the meta policy was trained over.
+pub(crate) fn hierarchy(
+    meta: Policy,
+    header: &Header,
+    file: &Path,
+    pathfinding: Option<&Path>,
+    formation: Option<&Path>,
+    multiple: f64,
+) -> anyhow::Result<Hierarchy> {
+    let info = header.meta.as_ref().with_context(|| {
+        format!("{} is not a meta policy (its header has no hierarchy)", file.display())
+    })?;
+    let (pf, pf_ref) = load(pathfinding, "pathfinding")?;
+    let (fm, fm_ref) = load(formation, "formation")?;
+    for (what, saved, now) in
+        [("path-finding", &info.pathfinding, &pf_ref), ("formation", &info.formation, &fm_ref)]
+    {
+        anyhow::ensure!(
+            saved.crc32 == now.crc32,
+            "{} was trained over the {what} policy {} (crc32 {}), not {} (crc32 {})",
+            file.display(),
+            saved.file,
+            saved.crc32,
+            now.file,
+            now.crc32
+        );
+    }
+    let low = LowLevel::new(pf, fm).context("the low-level policies")?;
+    Hierarchy::new(meta, low, info.weight.clone(), multiple)
+        .with_context(|| format!("the meta policy {}", file.display()))
+}

@@ -1,0 +1,215 @@
+//! The formation frame: what the formation policy observes when it runs inside the hierarchy.
+//!
+//! The formation policy was trained with its goals on a placement of the target layout next
+//! to the team (`formation_instance`): its cost channel and goal vector lead each agent to its
+//! slot of the layout, which is how it reshapes. On the way to far goals those inputs would
+//! lead it to the far goals instead. The frame gives it the inputs of its training: the goal
+//! layout translated onto the team so that an *anchor* agent's slot is a given cell (the
+//! anchor's cell after its move this step, see [`Env::update_frame`]), moved by at most
+//! [`SHIFT`] cells to the nearest placement whose cells are all free; each agent's *frame
+//! goal* is its cell of that placement, with BFS distances from each frame goal within a
+//! window of radius [`RADIUS`] around it (cells beyond the window count as blocked, as the
+//! training maps' walls do). Anchored at the leader's next cell, the formation policy brings
+//! the others along with the leader: when the team is in formation and the leader moves, the
+//! others' frame goals move with it, one step away in the same direction. The formation
+//! channel, the other channels, the mask and the leader order are the episode's own: they do
+//! not depend on where the goals lie.
+//!
+//! The frame is derived from the joint state, as the leader order is: the world supplies it
+//! with each agent's observation.
+
+use phalanx_core::Cell;
+
+use super::{BLOCKED, Env, UNREACHABLE};
+use crate::obs::{CHANNELS, COST_SENTINEL};
+
+/// Radius of the window of each frame goal's distances (a window of `2R + 1` cells a side).
+pub(crate) const RADIUS: i32 = 16;
+
+/// How far (cells, in each axis) the placement may move from the rounded centroids to find
+/// free cells for every frame goal.
+pub(crate) const SHIFT: i32 = 2;
+
+/// Side of a frame goal's window.
+const SIDE: usize = (2 * RADIUS + 1) as usize;
+
+/// The frame of the current state (see the module docs); empty until
+/// [`Env::update_frame`].
+#[derive(Debug, Clone, Default)]
+pub(super) struct Frame {
+    /// Each agent's frame goal.
+    goals: Vec<Cell>,
+    /// Per agent, `SIDE × SIDE` BFS distances from its frame goal, row-major from the
+    /// window's bottom-left cell `goal - (R, R)`.
+    dist: Vec<u32>,
+    /// The BFS queue (window indices).
+    queue: Vec<u32>,
+    /// Whether each agent stands on its frame goal.
+    on_goal: Vec<bool>,
+}
+
+impl Env {
+    /// Computes the formation frame with agent `anchor`'s slot on `anchor_cell`: the frame
+    /// goals and their distance windows. Call it after every reset and step whose frame
+    /// observations are read ([`Env::write_frame_grid`], [`Env::write_frame_vector`]).
+    ///
+    /// # Panics
+    /// If `anchor` is not an agent.
+    pub fn update_frame(&mut self, anchor: usize, anchor_cell: Cell) {
+        let n = self.pos.len();
+        let (dx, dy) = (anchor_cell.x - self.goals[anchor].x, anchor_cell.y - self.goals[anchor].y);
+        // Offsets nearest first (ties: smaller |dy|, then dy, then dx), the unshifted first.
+        let mut shifts: Vec<(i32, i32)> =
+            (-SHIFT..=SHIFT).flat_map(|sy| (-SHIFT..=SHIFT).map(move |sx| (sx, sy))).collect();
+        shifts.sort_by_key(|&(sx, sy)| (sx * sx + sy * sy, sy.abs(), sy, sx));
+        let free = |cell: Cell| self.padded_free(cell);
+        let (ox, oy) = shifts
+            .into_iter()
+            .map(|(sx, sy)| (dx + sx, dy + sy))
+            .find(|&(ox, oy)| self.goals.iter().all(|g| free(g.offset(ox, oy))))
+            .unwrap_or((dx, dy));
+        let mut frame = std::mem::take(&mut self.frame);
+        frame.goals.clear();
+        frame.goals.extend(self.goals.iter().map(|g| g.offset(ox, oy)));
+        frame.dist.resize(n * SIDE * SIDE, UNREACHABLE);
+        frame.queue.resize(SIDE * SIDE, 0);
+        for (agent, window) in frame.dist.chunks_exact_mut(SIDE * SIDE).enumerate() {
+            self.window_bfs(frame.goals[agent], window, &mut frame.queue);
+        }
+        frame.on_goal.clear();
+        frame.on_goal.extend(self.pos.iter().zip(&frame.goals).map(|(p, g)| p == g));
+        self.frame = frame;
+    }
+
+    /// The frame goals of the last [`Env::update_frame`].
+    pub fn frame_goals(&self) -> &[Cell] {
+        &self.frame.goals
+    }
+
+    /// Agent `agent`'s channels in the formation frame, `[4, F, F]`: the episode's channels
+    /// ([`Env::write_grid`]) with the cost channel measured to the frame goal. When the agent
+    /// stands outside its frame goal's window, the cost channel uses Manhattan distances to
+    /// the frame goal instead (blocked cells keep the sentinel).
+    ///
+    /// # Panics
+    /// If the frame was never computed.
+    pub fn write_frame_grid(&self, agent: usize, out: &mut [f32]) {
+        assert_eq!(self.frame.goals.len(), self.pos.len(), "update_frame first");
+        self.write_grid(agent, out);
+        let f = self.fov;
+        let r = self.pad as i32;
+        let cost = &mut out[2 * f * f..3 * f * f];
+        debug_assert_eq!(CHANNELS, 4);
+        let here = self.pos[agent];
+        let goal = self.frame.goals[agent];
+        let window = &self.frame.dist[agent * SIDE * SIDE..(agent + 1) * SIDE * SIDE];
+        let manhattan = |c: Cell| (c.x - goal.x).unsigned_abs() + (c.y - goal.y).unsigned_abs();
+        let own = window_at(window, goal, here);
+        let k = (f - 1) as f32;
+        for (row, line) in cost.chunks_exact_mut(f).enumerate() {
+            for (col, value) in line.iter_mut().enumerate() {
+                let cell = here.offset(col as i32 - r, row as i32 - r);
+                if !self.padded_free(cell) {
+                    *value = COST_SENTINEL;
+                    continue;
+                }
+                let other_on_goal = self.occupant(cell).is_some_and(|j| {
+                    j != agent && self.frame.on_goal.get(j).copied().unwrap_or(false)
+                });
+                let rel = match own {
+                    Some(own) => window_at(window, goal, cell).map(|d| d as f32 - own as f32),
+                    None => Some(manhattan(cell) as f32 - manhattan(here) as f32),
+                };
+                *value = match rel {
+                    Some(rel) if !other_on_goal => rel.clamp(-k, k) / k,
+                    _ => COST_SENTINEL,
+                };
+            }
+        }
+    }
+
+    /// Agent `agent`'s goal vector towards its frame goal, scaled as [`Env::write_vector`].
+    ///
+    /// # Panics
+    /// If the frame was never computed.
+    pub fn write_frame_vector(&self, agent: usize, out: &mut [f32]) {
+        let (p, g) = (self.pos[agent], self.frame.goals[agent]);
+        write_goal_vector(p, g, self.fov, out);
+    }
+
+    /// Whether `cell` is a free cell of the map (outside the map is blocked).
+    fn padded_free(&self, cell: Cell) -> bool {
+        let inside = |v: i32, side: u32| (0..side as i32).contains(&v);
+        inside(cell.x, self.width)
+            && inside(cell.y, self.height)
+            && self.blocked[super::padded_idx(self.pw, self.pad, cell) as usize] == 0
+    }
+
+    /// The agent standing on `cell`, if any (`cell` on the map or its padding).
+    fn occupant(&self, cell: Cell) -> Option<usize> {
+        let r = self.pad as i32;
+        let inside = |v: i32, side: u32| (-r..side as i32 + r).contains(&v);
+        if !inside(cell.x, self.width) || !inside(cell.y, self.height) {
+            return None;
+        }
+        let v = self.occ[super::padded_idx(self.pw, self.pad, cell) as usize];
+        (usize::from(v) < self.pos.len()).then_some(usize::from(v))
+    }
+
+    /// BFS from `source` over the free cells of its window (the source itself counts as
+    /// free); `window` is overwritten.
+    fn window_bfs(&self, source: Cell, window: &mut [u32], queue: &mut [u32]) {
+        window.fill(UNREACHABLE);
+        let origin = source.offset(-RADIUS, -RADIUS);
+        let start = (RADIUS as usize) * SIDE + RADIUS as usize;
+        window[start] = 0;
+        queue[0] = start as u32;
+        let (mut head, mut tail) = (0, 1);
+        while head < tail {
+            let id = queue[head] as usize;
+            head += 1;
+            let (x, y) = ((id % SIDE) as i32, (id / SIDE) as i32);
+            let next = window[id] + 1;
+            for (nx, ny) in [(x, y + 1), (x, y - 1), (x - 1, y), (x + 1, y)] {
+                if !(0..SIDE as i32).contains(&nx) || !(0..SIDE as i32).contains(&ny) {
+                    continue;
+                }
+                let n = ny as usize * SIDE + nx as usize;
+                if window[n] != UNREACHABLE {
+                    continue;
+                }
+                if !self.padded_free(origin.offset(nx, ny)) {
+                    window[n] = BLOCKED;
+                    continue;
+                }
+                window[n] = next;
+                queue[tail] = n as u32;
+                tail += 1;
+            }
+        }
+    }
+}
+
+/// The distance stored for `cell` in the window of the frame goal `goal`, `None` outside the
+/// window, blocked or cut off.
+fn window_at(window: &[u32], goal: Cell, cell: Cell) -> Option<u32> {
+    let (x, y) = (cell.x - goal.x + RADIUS, cell.y - goal.y + RADIUS);
+    if !(0..SIDE as i32).contains(&x) || !(0..SIDE as i32).contains(&y) {
+        return None;
+    }
+    let d = window[y as usize * SIDE + x as usize];
+    (d < BLOCKED).then_some(d)
+}
+
+/// The scaled goal vector `(dx/‖d‖, dy/‖d‖, ‖d‖/(‖d‖ + F))` from `p` to `g`, zeros on the goal.
+pub(super) fn write_goal_vector(p: Cell, g: Cell, fov: usize, out: &mut [f32]) {
+    let (dx, dy) = (f64::from(g.x - p.x), f64::from(g.y - p.y));
+    let norm = (dx * dx + dy * dy).sqrt();
+    if norm == 0.0 {
+        out[..3].fill(0.0);
+    } else {
+        out[0] = (dx / norm) as f32;
+        out[1] = (dy / norm) as f32;
+        out[2] = (norm / (norm + fov as f64)) as f32;
+    }
+}

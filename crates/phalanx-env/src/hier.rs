@@ -1,0 +1,247 @@
+//! The hierarchy's environment (SPEC §6, the paper's Algorithm 1): the meta task's episode with
+//! the three observations the hierarchy reads each step.
+//!
+//! Each step:
+//! 1. the meta policy observes ([`HierEnv::observe`] writes the meta buffers): the episode's
+//!    four channels and goal vector, optionally followed by the formation-weight multiple (for
+//!    a weight-conditioned meta policy), a mask allowing both choices, and the path-finding
+//!    leader order (the agent in front decides first; later agents see the earlier choices as
+//!    their message);
+//! 2. every agent chooses a low-level policy ([`Choice`]); [`HierEnv::set_choices`] fixes the
+//!    step's acting order for the low level: the path finders first, front first, then the
+//!    formation followers, nearest the team's centroid first;
+//! 3. the low-level policies act in that order, each agent through the policy it chose, with
+//!    the message of the actions taken before it whichever policy took them. The path-finding
+//!    policy reads the episode's observation with path-finding clipping
+//!    ([`HierEnv::pathfinding_obs`]); the formation policy reads the formation frame (the goal
+//!    layout placed on the team, see `Env::update_frame`) with formation clipping
+//!    ([`HierEnv::formation_obs`]). The frame is anchored at the leader (the first in the
+//!    order): once the leader has acted, [`HierEnv::place_frame`] puts the leader's slot on
+//!    the cell its action leads to (its own cell when it chose formation or its move is
+//!    blocked), so that formation followers move with it. Both buffers are written every
+//!    step, so both policies' recurrent states can advance every step whichever runs;
+//! 4. [`HierEnv::step`] applies the joint action; the reward is the meta task's (Table I:
+//!    collision −50, +1 a move towards the goal, −`w_f · L_f` per agent).
+
+use phalanx_core::{Action, Instance};
+
+use crate::marl::{ObsBuffers, ObsShape, StepOut};
+use crate::obs::{N_ACTIONS, VECTOR_LEN};
+use crate::{Clip, Env, EnvConfig, EnvError, LeaderRule, Task};
+
+/// Which low-level policy an agent runs this step: the meta policy's action.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Choice {
+    /// The path-finding policy (meta action 0).
+    PathFinding = 0,
+    /// The formation policy (meta action 1).
+    Formation = 1,
+}
+
+impl Choice {
+    /// Number of meta actions.
+    pub const COUNT: usize = 2;
+
+    /// The choice of meta action `index`, `None` above 1.
+    pub fn from_index(index: u8) -> Option<Choice> {
+        match index {
+            0 => Some(Choice::PathFinding),
+            1 => Some(Choice::Formation),
+            _ => None,
+        }
+    }
+}
+
+/// One episode of the meta task with the meta, path-finding and formation observations.
+#[derive(Debug, Clone)]
+pub struct HierEnv {
+    env: Env,
+    n_agents: usize,
+    weight_input: bool,
+    multiple: f32,
+    pathfinding: ObsBuffers,
+    formation: ObsBuffers,
+    actions: Vec<Action>,
+}
+
+impl HierEnv {
+    /// An environment for teams of `n_agents` with the field of view and step limit of
+    /// `config` (its task becomes [`Task::Meta`]). With `weight_input`, the meta observation's
+    /// vector ends with the formation-weight multiple of the episode.
+    ///
+    /// # Panics
+    /// If `n_agents` is 0.
+    pub fn new(config: EnvConfig, n_agents: usize, weight_input: bool) -> Result<Self, EnvError> {
+        assert!(n_agents > 0, "an environment needs agents");
+        let env = Env::new(EnvConfig { task: Task::Meta, ..config })?;
+        let low = env.obs_shape();
+        Ok(HierEnv {
+            env,
+            n_agents,
+            weight_input,
+            multiple: 0.0,
+            pathfinding: ObsBuffers::new(n_agents, low),
+            formation: ObsBuffers::new(n_agents, low),
+            actions: vec![Action::Wait; n_agents],
+        })
+    }
+
+    /// Sizes of one agent's meta observation: the four channels, the goal vector (and the
+    /// weight multiple), two actions.
+    pub fn meta_shape(&self) -> ObsShape {
+        ObsShape {
+            env_vec: VECTOR_LEN + usize::from(self.weight_input),
+            n_actions: Choice::COUNT,
+            ..self.env.obs_shape()
+        }
+    }
+
+    /// Agents per episode.
+    pub fn n_agents(&self) -> usize {
+        self.n_agents
+    }
+
+    /// The simulator (positions, goals, time, `L_f` of the running episode).
+    pub fn env(&self) -> &Env {
+        &self.env
+    }
+
+    /// The path-finding policy's observation of the current step (valid after
+    /// [`HierEnv::set_choices`], which writes its order).
+    pub fn pathfinding_obs(&self) -> &ObsBuffers {
+        &self.pathfinding
+    }
+
+    /// The formation policy's observation (the formation frame) of the current step, in the
+    /// order of [`HierEnv::set_choices`] (valid after [`HierEnv::place_frame`]).
+    pub fn formation_obs(&self) -> &ObsBuffers {
+        &self.formation
+    }
+
+    /// Starts an episode on `instance` whose meta reward weighs `L_f` by `formation_weight`
+    /// per agent; `multiple` is what the meta observation reads as the weight (the
+    /// multiple of the base weight, with `weight_input`); writes the meta observation.
+    ///
+    /// # Errors
+    /// If the instance has another agent count or the simulator refuses it.
+    pub fn reset_to(
+        &mut self,
+        instance: &Instance,
+        formation_weight: f64,
+        multiple: f64,
+        meta: &mut ObsBuffers,
+    ) -> Result<(), EnvError> {
+        if instance.n_agents() != self.n_agents {
+            return Err(EnvError::AgentCount {
+                expected: self.n_agents,
+                found: instance.n_agents(),
+            });
+        }
+        self.env.set_formation_weight(formation_weight);
+        self.env.reset(instance)?;
+        self.multiple = multiple as f32;
+        self.observe(meta);
+        Ok(())
+    }
+
+    /// The leader of the current step (the first in [`HierEnv::set_choices`]' order).
+    pub fn leader(&self) -> usize {
+        self.pathfinding.order[0]
+    }
+
+    /// Anchors the formation frame at the leader's slot after `leader_action` (`None`: its
+    /// current cell; a move into a blocked cell also leaves it there) and writes the
+    /// formation policy's observation.
+    ///
+    /// # Panics
+    /// If `leader_action` is not an action index.
+    pub fn place_frame(&mut self, leader_action: Option<u8>) {
+        let leader = self.leader();
+        let here = self.env.positions()[leader];
+        let next = leader_action
+            .map(|a| Action::from_index(usize::from(a)).expect("action index below 5").apply(here))
+            .filter(|&cell| self.env.distance(leader, cell).is_some())
+            .unwrap_or(here);
+        self.env.update_frame(leader, next);
+        let env = &self.env;
+        let shape = self.formation.shape;
+        let grids = self.formation.grid.chunks_exact_mut(shape.grid_len());
+        let vectors = self.formation.vec.chunks_exact_mut(VECTOR_LEN);
+        let masks = self.formation.action_mask.chunks_exact_mut(N_ACTIONS);
+        for (agent, ((grid, vector), mask)) in grids.zip(vectors).zip(masks).enumerate() {
+            env.write_frame_grid(agent, grid);
+            env.write_frame_vector(agent, vector);
+            env.write_mask(agent, Clip::Formation, mask);
+        }
+    }
+
+    /// Writes the meta observation of the current state and the path-finding observation.
+    fn observe(&mut self, meta: &mut ObsBuffers) {
+        assert_eq!(meta.n_agents, self.n_agents, "buffers of another agent count");
+        assert_eq!(meta.shape, self.meta_shape(), "buffers of another shape");
+        self.env.observe_clipped(&mut self.pathfinding, Clip::PathFinding);
+        meta.grid.copy_from_slice(&self.pathfinding.grid);
+        let width = meta.shape.env_vec;
+        for (agent, out) in meta.vec.chunks_exact_mut(width).enumerate() {
+            out[..VECTOR_LEN].copy_from_slice(self.pathfinding.vec_of(agent));
+            if self.weight_input {
+                out[VECTOR_LEN] = self.multiple;
+            }
+        }
+        meta.action_mask.fill(true);
+        let order = self.env.begin_turns(LeaderRule::PathFinding);
+        meta.order.clear();
+        meta.order.extend(order.iter().map(|&agent| usize::from(agent)));
+    }
+
+    /// Records the agents' choices (`choices[agent]`, meta action indices) and writes the
+    /// low level's acting order of this step into both low-level observations: the agents
+    /// that chose path finding first, front first (the path-finding rule), then those that
+    /// chose formation, nearest the team's centroid first (the formation rule); ties by agent
+    /// index. The leader is thus the front path finder, or with formation only, the agent at
+    /// the centre.
+    ///
+    /// # Panics
+    /// If there is not one choice per agent or a choice is not 0 or 1.
+    pub fn set_choices(&mut self, choices: &[u8]) {
+        assert_eq!(choices.len(), self.n_agents, "one choice per agent");
+        let chose = |agent: usize, choice: Choice| {
+            Choice::from_index(choices[agent]).expect("a meta action is 0 or 1") == choice
+        };
+        let mut order = std::mem::take(&mut self.pathfinding.order);
+        order.clear();
+        let front = self.env.begin_turns(LeaderRule::PathFinding);
+        order.extend(
+            front.iter().map(|&a| usize::from(a)).filter(|&a| chose(a, Choice::PathFinding)),
+        );
+        let centre = self.env.begin_turns(LeaderRule::Formation);
+        order.extend(
+            centre.iter().map(|&a| usize::from(a)).filter(|&a| chose(a, Choice::Formation)),
+        );
+        self.formation.order.clone_from(&order);
+        self.pathfinding.order = order;
+    }
+
+    /// Applies the low-level joint action (`actions[agent]`, action indices) and writes the
+    /// next meta observation.
+    ///
+    /// # Panics
+    /// If there is not one action per agent, an action index is above 4, or the episode has
+    /// ended.
+    pub fn step(&mut self, actions: &[u8], meta: &mut ObsBuffers) -> StepOut {
+        assert_eq!(actions.len(), self.n_agents, "one action per agent");
+        for (slot, &action) in self.actions.iter_mut().zip(actions) {
+            *slot = Action::from_index(usize::from(action)).expect("action index below 5");
+        }
+        let step = self.env.step(&self.actions);
+        let out = StepOut {
+            team_reward: step.team_reward,
+            terminated: step.terminated,
+            truncated: step.truncated,
+            collisions: step.info.n_cancelled,
+        };
+        self.observe(meta);
+        out
+    }
+}

@@ -1,0 +1,421 @@
+//! The hierarchy (SPEC §6, the paper's Algorithm 1): a meta policy choosing, per agent and
+//! step, between the frozen path-finding and formation policies.
+//!
+//! - [`LowLevel`]: the two frozen low-level policies acting together on [`HierEnv`]s: both
+//!   recurrent passes run for every agent every step (so each policy's state follows the whole
+//!   episode whichever policy acts), then the heads in the step's leader order, each agent
+//!   through the head of the policy it chose, with the message of the actions taken before it;
+//! - [`MetaEnv`]: the [`MarlEnv`] the meta policy trains on: a [`HierEnv`] on the training
+//!   pool whose actions are the meta choices, the low level acting greedily inside the step;
+//! - [`FormationWeight`]: the meta reward's weight, `multiple × w_f(k)` for teams of `k`,
+//!   with the base weights of Eq. 14 (`crate::weight`) and the multiples trained.
+
+use burn::tensor::Device;
+use phalanx_env::{
+    Choice, EnvConfig, EnvError, HierEnv, MarlEnv, ObsBuffers, ObsShape, PoolConfig, StepOut,
+    TrainPool,
+};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::policy::{Policy, Turns};
+
+/// The frozen path-finding and formation policies of the hierarchy.
+#[derive(Clone, Debug)]
+pub struct LowLevel {
+    pathfinding: Policy,
+    formation: Policy,
+}
+
+/// Why two policies cannot make a low level.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum LowLevelError {
+    /// A policy does not have the five moves.
+    #[error("the {policy} policy has {found} actions, not 5")]
+    Actions {
+        /// Which policy.
+        policy: &'static str,
+        /// Its action count.
+        found: usize,
+    },
+    /// The policies read different observations or messages.
+    #[error(
+        "the path-finding and formation policies differ in {what} ({pathfinding} and {formation})"
+    )]
+    Mismatch {
+        /// What differs.
+        what: &'static str,
+        /// The path-finding policy's value.
+        pathfinding: usize,
+        /// The formation policy's value.
+        formation: usize,
+    },
+}
+
+impl LowLevel {
+    /// The low level of two trained policies (five actions each, the same field of view and
+    /// agent slots, so that both read the same observations and messages).
+    ///
+    /// # Errors
+    /// If the policies do not fit together.
+    pub fn new(pathfinding: Policy, formation: Policy) -> Result<LowLevel, LowLevelError> {
+        for (policy, p) in [("path-finding", &pathfinding), ("formation", &formation)] {
+            if p.config().n_actions != 5 {
+                return Err(LowLevelError::Actions { policy, found: p.config().n_actions });
+            }
+        }
+        let (a, b) = (pathfinding.config(), formation.config());
+        for (what, x, y) in [
+            ("field of view", a.fov, b.fov),
+            ("agent slots", a.n_agents_max, b.n_agents_max),
+            ("vector input", a.env_vec, b.env_vec),
+            ("channels", a.channels, b.channels),
+        ] {
+            if x != y {
+                return Err(LowLevelError::Mismatch { what, pathfinding: x, formation: y });
+            }
+        }
+        Ok(LowLevel { pathfinding, formation })
+    }
+
+    /// The field of view both policies read.
+    pub fn fov(&self) -> usize {
+        self.pathfinding.config().fov
+    }
+
+    /// The most agents per team both policies take.
+    pub fn n_agents_max(&self) -> usize {
+        self.pathfinding.config().n_agents_max
+    }
+
+    /// The device the policies run on.
+    pub fn device(&self) -> &Device {
+        self.pathfinding.device()
+    }
+
+    /// Forget every episode's recurrent state.
+    pub fn reset(&mut self) {
+        self.pathfinding.reset();
+        self.formation.reset();
+    }
+
+    /// Forget the recurrent state of the episodes `e` with `restart[e]` (see
+    /// [`Policy::reset_envs`]).
+    pub fn reset_envs(&mut self, agents: &[usize], restart: &[bool]) {
+        self.pathfinding.reset_envs(agents, restart);
+        self.formation.reset_envs(agents, restart);
+    }
+
+    /// One step of every episode of `envs` after their [`HierEnv::set_choices`]: `choices`
+    /// and `actions` are laid out episode after episode (`[Σ N_e]`, agent order within an
+    /// episode). An agent takes a random action allowed by its chosen policy's mask with
+    /// probability `epsilon` (test-time rollouts), else its policy's greedy one.
+    ///
+    /// Within the step: the path-finding recurrent pass for every agent; the leaders that
+    /// chose path finding act; the formation frames are anchored at the leaders' next cells
+    /// ([`HierEnv::place_frame`]); the formation recurrent pass for every agent; the leaders
+    /// that chose formation act; then the other ranks in order, each agent through its
+    /// chosen policy's head with the message of the actions taken before it.
+    ///
+    /// # Panics
+    /// If the lengths disagree or a choice is not 0 or 1.
+    pub fn act_batch(
+        &mut self,
+        envs: &mut [HierEnv],
+        choices: &[u8],
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+    ) {
+        let rows: usize = envs.iter().map(HierEnv::n_agents).sum();
+        assert!(choices.len() == rows && actions.len() == rows, "one choice and action per agent");
+        let offsets: Vec<usize> = crate::policy::row_offsets(envs.iter().map(HierEnv::n_agents));
+        let formation = |e: usize, agent: usize| {
+            Choice::from_index(choices[offsets[e] + agent]).expect("a meta action is 0 or 1")
+                == Choice::Formation
+        };
+        let leaders: Vec<usize> = envs.iter().map(HierEnv::leader).collect();
+        let (pf_leaders, fm_leaders): (Vec<usize>, Vec<usize>) =
+            (0..envs.len()).partition(|&e| !formation(e, leaders[e]));
+        let pf_features;
+        let mut turns;
+        {
+            let pf_obs: Vec<&ObsBuffers> = envs.iter().map(HierEnv::pathfinding_obs).collect();
+            pf_features = self.pathfinding.recurrent_step(&pf_obs);
+            turns = Turns::new(&pf_obs, self.pathfinding.config());
+            let policy = &self.pathfinding;
+            turns.act(0, &pf_leaders, policy, &pf_features, &pf_obs, epsilon, rng, actions, None);
+        }
+        for (e, env) in envs.iter_mut().enumerate() {
+            let moved = !formation(e, leaders[e]);
+            env.place_frame(moved.then(|| actions[offsets[e] + leaders[e]]));
+        }
+        let pf_obs: Vec<&ObsBuffers> = envs.iter().map(HierEnv::pathfinding_obs).collect();
+        let fm_obs: Vec<&ObsBuffers> = envs.iter().map(HierEnv::formation_obs).collect();
+        let fm_features = self.formation.recurrent_step(&fm_obs);
+        let (pf, fm) = (&self.pathfinding, &self.formation);
+        turns.act(0, &fm_leaders, fm, &fm_features, &fm_obs, epsilon, rng, actions, None);
+        let max_agents = envs.iter().map(HierEnv::n_agents).max().unwrap_or(0);
+        for rank in 1..max_agents {
+            let (pf_group, fm_group): (Vec<usize>, Vec<usize>) = (0..envs.len())
+                .filter(|&e| rank < envs[e].n_agents())
+                .partition(|&e| !formation(e, pf_obs[e].order[rank]));
+            turns.act(rank, &pf_group, pf, &pf_features, &pf_obs, epsilon, rng, actions, None);
+            turns.act(rank, &fm_group, fm, &fm_features, &fm_obs, epsilon, rng, actions, None);
+        }
+    }
+}
+
+/// What a meta policy's files record of its hierarchy: the formation weights it was trained
+/// with and the low-level policies it chooses between.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MetaInfo {
+    /// The formation weights of the meta reward.
+    pub weight: FormationWeight,
+    /// The frozen path-finding policy.
+    pub pathfinding: PolicyRef,
+    /// The frozen formation policy.
+    pub formation: PolicyRef,
+}
+
+/// A policy file named by where it was and what it held.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolicyRef {
+    /// The path it was read from.
+    pub file: String,
+    /// CRC-32 of its bytes, in hexadecimal.
+    pub crc32: String,
+}
+
+impl PolicyRef {
+    /// The reference of the file at `path` with contents `bytes`.
+    pub fn of(path: &std::path::Path, bytes: &[u8]) -> PolicyRef {
+        PolicyRef {
+            file: path.display().to_string(),
+            crc32: format!("{:08x}", crc32fast::hash(bytes)),
+        }
+    }
+}
+
+/// The meta reward's formation weight: `multiple × base(k)` per agent for teams of `k`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FormationWeight {
+    /// The base weights `w_f` of Eq. 14, `(team size, w_f)` ascending by size; a team size
+    /// between two entries takes the nearer one's (the smaller on a tie), outside the range
+    /// the nearest end's.
+    pub base: Vec<(usize, f64)>,
+    /// The multiples of the base weight the meta policy trains on.
+    pub multiples: Multiples,
+}
+
+/// Which multiples of the base weight episodes are drawn with.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Multiples {
+    /// Every episode at this multiple (a meta policy per Pareto point).
+    Fixed {
+        /// The multiple.
+        multiple: f64,
+    },
+    /// A weight-conditioned meta policy: the multiple is part of the meta observation; an
+    /// episode takes `1` with probability `p_one`, else a multiple drawn uniformly from
+    /// `[0, max]`.
+    Conditioned {
+        /// The largest multiple trained.
+        max: f64,
+        /// Probability of the multiple 1 (the shipped operating point).
+        p_one: f64,
+    },
+}
+
+impl FormationWeight {
+    /// The base weight for teams of `n_agents`.
+    ///
+    /// # Panics
+    /// If there are no base weights.
+    pub fn base_for(&self, n_agents: usize) -> f64 {
+        self.base
+            .iter()
+            .min_by_key(|&&(k, _)| (k.abs_diff(n_agents), k))
+            .expect("base weights are given")
+            .1
+    }
+
+    /// Whether the meta observation carries the multiple.
+    pub fn conditioned(&self) -> bool {
+        matches!(self.multiples, Multiples::Conditioned { .. })
+    }
+
+    /// An episode's multiple, drawn from `rng` for a conditioned policy.
+    pub fn draw_multiple(&self, rng: &mut ChaCha8Rng) -> f64 {
+        match self.multiples {
+            Multiples::Fixed { multiple } => multiple,
+            Multiples::Conditioned { max, p_one } => {
+                if rng.random::<f64>() < p_one {
+                    1.0
+                } else {
+                    rng.random::<f64>() * max
+                }
+            }
+        }
+    }
+}
+
+/// The meta policy's training environment: a [`HierEnv`] on the training pool, whose actions
+/// are the agents' meta choices; inside each step the frozen low level acts greedily.
+/// Resets draw the map, the start and goal formation ([`TrainPool::sample`]) and, for a
+/// weight-conditioned policy, the weight multiple, all from the reset's seed.
+#[derive(Clone, Debug)]
+pub struct MetaEnv {
+    hier: HierEnv,
+    pool: TrainPool,
+    low: LowLevel,
+    weight: FormationWeight,
+    reward_scale: f32,
+    rng: ChaCha8Rng,
+    actions: Vec<u8>,
+}
+
+impl MetaEnv {
+    /// Generates the pool of `pool` once; teams of `n_agents`, the field of view and step
+    /// limit of `env`; rewards multiplied by `reward_scale` (a training aid; greedy policies
+    /// do not change).
+    ///
+    /// # Panics
+    /// If `n_agents` is 0 or the pool has no maps.
+    pub fn new(
+        low: LowLevel,
+        weight: FormationWeight,
+        pool: &PoolConfig,
+        env: EnvConfig,
+        n_agents: usize,
+        reward_scale: f32,
+    ) -> Result<MetaEnv, EnvError> {
+        let hier = HierEnv::new(env, n_agents, weight.conditioned())?;
+        let pool = TrainPool::new(pool)?;
+        assert!(!pool.is_empty(), "the training pool has no maps");
+        Ok(MetaEnv {
+            hier,
+            pool,
+            low,
+            weight,
+            reward_scale,
+            rng: ChaCha8Rng::seed_from_u64(0),
+            actions: vec![0; n_agents],
+        })
+    }
+
+    /// The same pool, low level and weights for teams of `n_agents` (the pool is shared, not
+    /// regenerated).
+    ///
+    /// # Panics
+    /// If `n_agents` is 0.
+    pub fn with_agents(&self, n_agents: usize) -> Result<MetaEnv, EnvError> {
+        let hier =
+            HierEnv::new(self.hier.env().config().clone(), n_agents, self.weight.conditioned())?;
+        Ok(MetaEnv {
+            hier,
+            pool: self.pool.clone(),
+            low: self.low.clone(),
+            weight: self.weight.clone(),
+            reward_scale: self.reward_scale,
+            rng: ChaCha8Rng::seed_from_u64(0),
+            actions: vec![0; n_agents],
+        })
+    }
+
+    /// The running episode.
+    pub fn hier(&self) -> &HierEnv {
+        &self.hier
+    }
+}
+
+impl MarlEnv for MetaEnv {
+    fn n_agents(&self) -> usize {
+        self.hier.n_agents()
+    }
+
+    fn obs_shape(&self) -> ObsShape {
+        self.hier.meta_shape()
+    }
+
+    fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let n_agents = self.hier.n_agents();
+        let instance = self.pool.sample(n_agents, &mut rng);
+        let multiple = self.weight.draw_multiple(&mut rng);
+        let w_f = multiple * self.weight.base_for(n_agents);
+        self.hier.reset_to(&instance, w_f, multiple, obs).expect("pool instances fit");
+        self.low.reset();
+        self.rng = rng;
+    }
+
+    fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
+        self.hier.set_choices(actions);
+        let hier = std::slice::from_mut(&mut self.hier);
+        self.low.act_batch(hier, actions, 0.0, &mut self.rng, &mut self.actions);
+        let mut out = self.hier.step(&self.actions, obs);
+        out.team_reward *= self.reward_scale;
+        out
+    }
+}
+
+/// The whole hierarchy at test time: the meta policy over the low level, run at one multiple
+/// of the base formation weight (read by a weight-conditioned meta policy).
+#[derive(Clone, Debug)]
+pub struct Hierarchy {
+    /// The meta policy (two actions: [`Choice`] indices).
+    pub meta: Policy,
+    /// The frozen low-level policies.
+    pub low: LowLevel,
+    /// The formation weights the meta policy was trained with.
+    pub weight: FormationWeight,
+    /// The multiple of the base weight to run at.
+    pub multiple: f64,
+}
+
+/// Why a meta policy does not fit its low level.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum HierarchyError {
+    /// The meta network's shape is not the hierarchy's.
+    #[error("the meta policy has {what} {found}, the hierarchy needs {expected}")]
+    Meta {
+        /// What differs.
+        what: &'static str,
+        /// The meta network's value.
+        found: usize,
+        /// The value the hierarchy needs.
+        expected: usize,
+    },
+}
+
+impl Hierarchy {
+    /// The hierarchy of a meta policy (2 actions, the low level's field of view, a vector
+    /// input of 3 or, weight-conditioned, 4) over `low`.
+    ///
+    /// # Errors
+    /// If the meta network does not fit.
+    pub fn new(
+        meta: Policy,
+        low: LowLevel,
+        weight: FormationWeight,
+        multiple: f64,
+    ) -> Result<Hierarchy, HierarchyError> {
+        let c = meta.config();
+        let vec = phalanx_env::obs::VECTOR_LEN + usize::from(weight.conditioned());
+        for (what, found, expected) in [
+            ("actions", c.n_actions, Choice::COUNT),
+            ("a field of view of", c.fov, low.fov()),
+            ("a vector input of", c.env_vec, vec),
+        ] {
+            if found != expected {
+                return Err(HierarchyError::Meta { what, found, expected });
+            }
+        }
+        Ok(Hierarchy { meta, low, weight, multiple })
+    }
+}

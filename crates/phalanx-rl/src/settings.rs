@@ -1,0 +1,310 @@
+//! A training run's settings: the schema of `phalanx train --config FILE` and `DIR/config.json`,
+//! the task defaults, and the environments they build.
+//!
+//! Layering, later over earlier: [`TrainConfig::default`] (the task-independent defaults),
+//! the task's defaults ([`TrainConfig::for_task`]), the fields a file gives
+//! ([`TrainConfig::from_json`], merged object by object), then what the caller's flags set.
+
+use std::path::PathBuf;
+
+use phalanx_env::{EnvConfig, EnvError, PoolConfig, PoolEnv, Shaping, Task};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::hierarchy::{FormationWeight, LowLevel, MetaEnv, Multiples};
+use crate::learner::LearnerConfig;
+use crate::net::QNetConfig;
+use crate::train::Collector;
+use crate::weight::WeightConfig;
+
+/// What a run trains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrainTask {
+    /// The path-finding policy ([`Task::PathFinding`] on the pool).
+    PathFinding,
+    /// The formation policy ([`Task::Formation`]: formation-training placements on the pool).
+    Formation,
+    /// The meta policy over the two frozen low-level policies ([`MetaEnv`]).
+    Meta,
+}
+
+impl TrainTask {
+    /// The name on the command line and under `models/`.
+    pub fn name(self) -> &'static str {
+        match self {
+            TrainTask::PathFinding => "pathfinding",
+            TrainTask::Formation => "formation",
+            TrainTask::Meta => "meta",
+        }
+    }
+
+    /// The environment's reward task.
+    pub fn env_task(self) -> Task {
+        match self {
+            TrainTask::PathFinding => Task::PathFinding,
+            TrainTask::Formation => Task::Formation,
+            TrainTask::Meta => Task::Meta,
+        }
+    }
+}
+
+/// Settings of a training run. Task-independent defaults: teams of 3, 16 environments in
+/// lockstep, 200 000 steps, a checkpoint every 1000 updates, the default network and learner,
+/// the paper's environment and pool, no shaping, reward scale 1. [`TrainConfig::for_task`]
+/// layers each task's own on top.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Team sizes trained (one shared network; environments take the sizes in turn).
+    pub agent_counts: Vec<usize>,
+    /// Environments played in lockstep (batched inference).
+    pub n_envs: usize,
+    /// Total environment steps.
+    pub steps: u64,
+    /// Gradient updates between checkpoints.
+    pub checkpoint_every: u64,
+    /// Network sizes (ignored on resume: the checkpoint's).
+    pub net: QNetConfig,
+    /// Learner hyper-parameters (ignored on resume: the checkpoint's).
+    pub learner: LearnerConfig,
+    /// Field of view and step limit (the task is the run's).
+    pub env: EnvConfig,
+    /// The training pool.
+    pub pool: PoolConfig,
+    /// Weight of the goal-progress bonus ([`Shaping`] with γ = 1: `weight` per unit of BFS
+    /// distance an agent gains towards its goal, the same taken for each unit lost); 0: none;
+    /// `null`: the task's default.
+    pub shaping: Option<f32>,
+    /// Factor on the team reward seen by the learner (shaping included); `null`: the task's
+    /// default.
+    pub reward_scale: Option<f32>,
+    /// Warm start: initial weights from this checkpoint or policy file (same network);
+    /// ignored on resume.
+    pub init_from: Option<PathBuf>,
+    /// The meta task's settings (used by [`TrainTask::Meta`] only).
+    pub meta: MetaSettings,
+}
+
+/// The meta task's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MetaSettings {
+    /// The frozen path-finding policy (a policy file or checkpoint); `None`: the shipped one.
+    pub pathfinding: Option<PathBuf>,
+    /// The frozen formation policy; `None`: the shipped one.
+    pub formation: Option<PathBuf>,
+    /// The base weights `w_f` per team size, `(size, w_f)`; `None`: estimated at the start of
+    /// the run with [`MetaSettings::estimate`] (Eq. 14) and written into the run's config.
+    pub base_weight: Option<Vec<(usize, f64)>>,
+    /// The multiples of the base weight trained (default: weight-conditioned on `[0, 3]`,
+    /// half of the episodes at 1).
+    pub multiples: Multiples,
+    /// How the base weights are estimated when not given.
+    pub estimate: WeightConfig,
+}
+
+impl Default for MetaSettings {
+    fn default() -> Self {
+        MetaSettings {
+            pathfinding: None,
+            formation: None,
+            base_weight: None,
+            multiples: Multiples::Conditioned { max: 3.0, p_one: 0.5 },
+            estimate: WeightConfig::default(),
+        }
+    }
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            agent_counts: vec![3],
+            n_envs: 16,
+            steps: 200_000,
+            checkpoint_every: 1000,
+            net: QNetConfig::default(),
+            learner: LearnerConfig::default(),
+            env: EnvConfig::default(),
+            pool: PoolConfig::default(),
+            shaping: Some(0.0),
+            reward_scale: Some(1.0),
+            init_from: None,
+            meta: MetaSettings::default(),
+        }
+    }
+}
+
+/// Why a configuration file cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum SettingsError {
+    /// Not JSON of the schema (serde's message names the line, the column and the field).
+    #[error("{0}")]
+    Json(#[from] serde_json::Error),
+    /// A value that parses but cannot be used.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+impl TrainConfig {
+    /// The defaults of `task`:
+    /// - path finding: the task-independent defaults;
+    /// - formation: teams of 3, 4 and 5 in 15 environments, episodes of at most 64 steps, the
+    ///   goal-progress bonus 20 and reward scale 0.05 (the shipped formation policy's
+    ///   settings);
+    /// - meta: teams of 3, 4 and 5 in 15 environments, full-length episodes (`3 × side`), a
+    ///   network of two actions reading the weight multiple (`env_vec` 4), reward scale 0.1,
+    ///   300 000 steps.
+    pub fn for_task(task: TrainTask) -> TrainConfig {
+        let base = TrainConfig::default();
+        match task {
+            TrainTask::PathFinding => base,
+            TrainTask::Formation => TrainConfig {
+                agent_counts: vec![3, 4, 5],
+                n_envs: 15,
+                env: EnvConfig { step_limit: Some(64), ..base.env.clone() },
+                shaping: Some(20.0),
+                reward_scale: Some(0.05),
+                ..base
+            },
+            TrainTask::Meta => TrainConfig {
+                agent_counts: vec![3, 4, 5],
+                n_envs: 15,
+                steps: 300_000,
+                net: QNetConfig { n_actions: 2, env_vec: 4, ..QNetConfig::default() },
+                reward_scale: Some(0.1),
+                ..base
+            },
+        }
+    }
+
+    /// The settings of a configuration file's JSON text: the fields it gives over `task`'s
+    /// defaults (objects merged field by field, so `{"env": {"fov": 7}}` keeps the task's
+    /// step limit).
+    ///
+    /// # Errors
+    /// If the text is not JSON of the schema (the message names line and column) or its
+    /// values cannot be used ([`TrainConfig::check`]).
+    pub fn from_json(text: &str, task: TrainTask) -> Result<TrainConfig, SettingsError> {
+        // Typed first, so that errors name the line and the field.
+        let _: TrainConfig = serde_json::from_str(text)?;
+        let given: Value = serde_json::from_str(text)?;
+        let mut merged = serde_json::to_value(TrainConfig::for_task(task)).expect("serialises");
+        merge(&mut merged, given);
+        let config: TrainConfig = serde_json::from_value(merged)?;
+        config.check()?;
+        Ok(config)
+    }
+
+    /// Checks what the schema cannot: positive counts and sizes within the network's slots.
+    ///
+    /// # Errors
+    /// Naming the field and its value.
+    pub fn check(&self) -> Result<(), SettingsError> {
+        let invalid = |msg: String| Err(SettingsError::Invalid(msg));
+        let max = self.net.n_agents_max;
+        if self.agent_counts.is_empty() {
+            return invalid("agent_counts must not be empty".into());
+        }
+        if let Some(&n) = self.agent_counts.iter().find(|&&n| !(1..=max).contains(&n)) {
+            return invalid(format!(
+                "agent count {n} must be between 1 and the network's n_agents_max {max}"
+            ));
+        }
+        if self.n_envs == 0 {
+            return invalid("n_envs must be positive".into());
+        }
+        if let Some(scale) = self.reward_scale
+            && !(scale.is_finite() && scale > 0.0)
+        {
+            return invalid(format!("reward_scale {scale} must be positive"));
+        }
+        if let Some(shaping) = self.shaping
+            && !shaping.is_finite()
+        {
+            return invalid(format!("shaping {shaping} must be finite"));
+        }
+        if let Some(base) = &self.meta.base_weight
+            && let Some(&(k, w)) = base.iter().find(|(_, w)| !(w.is_finite() && *w >= 0.0))
+        {
+            return invalid(format!("meta.base_weight for {k} agents is {w}, not a weight"));
+        }
+        Ok(())
+    }
+
+    /// The step limit of the training episodes: the configured one, else `3 × pool side`.
+    pub fn step_limit(&self) -> usize {
+        self.env.step_limit.unwrap_or(3 * self.pool.size) as usize
+    }
+
+    /// The goal-progress bonus's weight: the configured one, else `task`'s default.
+    pub fn shaping_for(&self, task: TrainTask) -> f32 {
+        self.shaping.or(TrainConfig::for_task(task).shaping).unwrap_or(0.0)
+    }
+
+    /// The reward scale: the configured one, else `task`'s default.
+    pub fn reward_scale_for(&self, task: TrainTask) -> f32 {
+        self.reward_scale.or(TrainConfig::for_task(task).reward_scale).unwrap_or(1.0)
+    }
+
+    /// The low-level tasks' collector: `n_envs` [`PoolEnv`]s of `task` taking the team sizes
+    /// in turn, with the shaping and reward scale of the settings.
+    ///
+    /// # Errors
+    /// If the environment or the pool cannot be built.
+    pub fn pool_collector(&self, task: TrainTask) -> Result<Collector<PoolEnv>, EnvError> {
+        let weight = self.shaping_for(task);
+        let shaping = (weight != 0.0).then_some(Shaping { weight, gamma: 1.0 });
+        let first =
+            PoolEnv::new(task.env_task(), &self.pool, self.env.clone(), self.agent_counts[0])?
+                .with_shaping(shaping)
+                .with_reward_scale(self.reward_scale_for(task));
+        let counts = &self.agent_counts;
+        let envs = (0..self.n_envs)
+            .map(|e| first.with_agents(counts[e % counts.len()]))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Collector::new(envs, self.step_limit()))
+    }
+
+    /// The meta task's collector over `low` with the base weights `base` (`(size, w_f)`).
+    ///
+    /// # Errors
+    /// If the environment or the pool cannot be built.
+    pub fn meta_collector(
+        &self,
+        low: LowLevel,
+        base: Vec<(usize, f64)>,
+    ) -> Result<Collector<MetaEnv>, EnvError> {
+        let weight = FormationWeight { base, multiples: self.meta.multiples };
+        let first = MetaEnv::new(
+            low,
+            weight,
+            &self.pool,
+            self.env.clone(),
+            self.agent_counts[0],
+            self.reward_scale_for(TrainTask::Meta),
+        )?;
+        let counts = &self.agent_counts;
+        let envs = (0..self.n_envs)
+            .map(|e| first.with_agents(counts[e % counts.len()]))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Collector::new(envs, self.step_limit()))
+    }
+}
+
+/// `over`'s fields written into `base`, objects merged recursively (anything else replaced).
+fn merge(base: &mut Value, over: Value) {
+    match (base, over) {
+        (Value::Object(base), Value::Object(over)) => {
+            for (key, value) in over {
+                match base.get_mut(&key) {
+                    Some(slot) => merge(slot, value),
+                    None => {
+                        base.insert(key, value);
+                    }
+                }
+            }
+        }
+        (slot, value) => *slot = value,
+    }
+}
