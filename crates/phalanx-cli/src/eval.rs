@@ -127,8 +127,8 @@ struct Report<'a> {
     summary: EvalSummary,
     /// Wall seconds of the episodes (policy and environment).
     seconds: f64,
-    /// Agent decisions per second (agents × steps / seconds, batched inference); with several
-    /// rollouts, the decisions of the kept rollouts over the time of all of them.
+    /// Agent decisions per second (agents × steps of every rollout / seconds, batched
+    /// inference).
     decisions_per_s: f64,
 }
 
@@ -193,7 +193,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     .context("evaluating")?;
     let seconds = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let decisions: usize = episodes.iter().map(|it| it.steps * it.n_agents).sum();
+    let decisions: u64 = episodes.iter().map(|it| it.decisions).sum();
     let report = Report {
         policy: name,
         weights: file.display().to_string(),

@@ -1,22 +1,33 @@
-//! `phalanx solve`: plans an instance with one of the classical planners of `phalanx-plan`,
+//! `phalanx solve`: plans an instance with one of the classical planners of `phalanx-plan` or
+//! a learned policy (`hrl`, the hierarchy; `pathfinding`, the path-finding policy alone),
 //! writes the plan in the libMultiRobotPlanning format and prints the outcome, the runtime and
 //! the validator's metrics (text, or JSON with `--json`).
 //!
-//! Exit codes: 0 a valid plan came back, 1 no plan (unsolvable, timeout, node limit) or an
-//! invalid one; bad input is an error (`main` maps it to 2).
+//! A learned policy plays the instance `--rollouts` times (the first greedy, the others with
+//! random actions at `--random-prob`) and keeps the best rollout (solved first, then the
+//! shortest, then the lowest formation loss); `runtime_s` covers the distance maps and every
+//! rollout. When no rollout reaches the goals within `3 × side` steps the outcome is
+//! `step_limit` and no plan is written.
+//!
+//! Exit codes: 0 a valid plan came back, 1 no plan (unsolvable, timeout, node limit, step
+//! limit) or an invalid one; bad input is an error (`main` maps it to 2).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use burn::tensor::Device;
+use phalanx_env::{EnvConfig, Task};
 use phalanx_io::PlanStats;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
+use phalanx_rl::checkpoint::load_policy_any;
+use phalanx_rl::{Rollouts, evaluate, evaluate_hierarchy};
 
-use crate::util;
+use crate::{meta, models, util};
 
 /// The planners `phalanx solve` offers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -31,6 +42,11 @@ pub(crate) enum PlannerName {
     Jsa,
     /// SWARM-MAPF-R (leader path, rigid translation, local MAPF).
     Swarm,
+    /// The learned hierarchy: the meta policy over the path-finding and formation policies.
+    Hrl,
+    /// The learned path-finding policy alone.
+    #[value(name = "pathfinding")]
+    PathFinding,
 }
 
 /// Plans an instance and reports the plan's metrics.
@@ -47,9 +63,26 @@ pub(crate) struct SolveCmd {
     /// The weight: jsa's formation-loss weight `w`, ecbs's suboptimality bound.
     #[arg(long)]
     weight: Option<f64>,
-    /// Wall-clock limit in seconds.
+    /// Wall-clock limit in seconds (classical planners).
     #[arg(long, default_value_t = 300.0)]
     time_limit: f64,
+    /// Learned policies: rollouts (the first greedy; the best one counts).
+    #[arg(long, default_value_t = 8)]
+    rollouts: usize,
+    /// Learned policies: probability of a random allowed action per agent and step in the
+    /// rollouts after the first.
+    #[arg(long, default_value_t = 0.05)]
+    random_prob: f64,
+    /// Learned policies: the weights directory (hrl: the meta policy's; default: the
+    /// shipped models/meta or models/pathfinding).
+    #[arg(long, value_name = "DIR")]
+    weights: Option<PathBuf>,
+    /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
+    #[arg(long, default_value_t = 1.0)]
+    multiple: f64,
+    /// Seed of the rollouts' random actions.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
     /// Where to write the plan (libMultiRobotPlanning YAML).
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -62,8 +95,16 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     if !(cmd.time_limit.is_finite() && cmd.time_limit > 0.0) {
         anyhow::bail!("--time-limit must be a positive number of seconds, not {}", cmd.time_limit);
     }
+    if let Some(w) = cmd.weight
+        && !(w.is_finite() && w >= 0.0)
+    {
+        anyhow::bail!("--weight must be a non-negative number, not {w}");
+    }
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let instance = &named.instance;
+    if matches!(cmd.planner, PlannerName::Hrl | PlannerName::PathFinding) {
+        return learned(&cmd, &named);
+    }
     let choice = match cmd.planner {
         PlannerName::Astar => PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()),
         PlannerName::Cbs => PlannerChoice::Cbs(cbs::CbsConfig::default()),
@@ -72,6 +113,9 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
             Objective::Weighted(cmd.weight.unwrap_or(1.0)),
         )),
         PlannerName::Swarm => PlannerChoice::Swarm(SwarmConfig::default()),
+        PlannerName::Hrl | PlannerName::PathFinding => {
+            unreachable!("learned planners return above")
+        }
     };
     let budget =
         Budget { time_limit: Some(Duration::from_secs_f64(cmd.time_limit)), node_limit: None };
@@ -86,10 +130,68 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
         phalanx_io::write_plan_named(path, plan, &named.names, &stats)
             .with_context(|| format!("writing plan {}", path.display()))?;
     }
-    if cmd.json {
-        util::print_json(&serde_json::to_value(&summary)?)?;
+    report_summary(&summary, cmd.json)
+}
+
+/// Prints the summary; the exit code of its outcome.
+fn report_summary(summary: &SolveSummary, json: bool) -> anyhow::Result<ExitCode> {
+    if json {
+        util::print_json(&serde_json::to_value(summary)?)?;
     } else {
         util::print(&format!("{}\n", summary.to_text()))?;
     }
     Ok(if summary.outcome == Outcome::Solved { ExitCode::SUCCESS } else { ExitCode::from(1) })
+}
+
+/// Solves with a learned policy (see the module docs).
+fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&cmd.random_prob),
+        "--random-prob {} must be in [0, 1]",
+        cmd.random_prob
+    );
+    anyhow::ensure!(
+        cmd.multiple.is_finite() && cmd.multiple >= 0.0,
+        "--multiple {} must be a non-negative number",
+        cmd.multiple
+    );
+    let instance = &named.instance;
+    let hrl = cmd.planner == PlannerName::Hrl;
+    let name = if hrl { "meta" } else { "pathfinding" };
+    let file = models::weights_file(cmd.weights.as_deref(), name)?;
+    let (mut policy, header) = load_policy_any(&file, &Device::flex())
+        .with_context(|| format!("loading the {name} policy"))?;
+    let n_max = header.net_config.n_agents_max;
+    anyhow::ensure!(
+        instance.n_agents() <= n_max,
+        "{}: {} agents, the policy takes at most {n_max}",
+        cmd.instance.display(),
+        instance.n_agents()
+    );
+    let fov = header.net_config.fov as u32;
+    let task = if hrl { Task::Meta } else { Task::PathFinding };
+    let env = EnvConfig { fov, task, ..EnvConfig::default() };
+    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
+    let instances = std::slice::from_ref(instance);
+    let started = Instant::now();
+    let episodes = if hrl {
+        let mut hierarchy = meta::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
+        evaluate_hierarchy(&mut hierarchy, &env, instances, 1, rollouts, &mut |_| {})
+    } else {
+        evaluate(&mut policy, task, &env, instances, 1, rollouts, &mut |_| {})
+    }
+    .with_context(|| format!("running the {name} policy on {}", cmd.instance.display()))?;
+    let runtime_s = started.elapsed().as_secs_f64();
+    let best = &episodes[0];
+    let planner = if hrl { "hrl" } else { "pathfinding" };
+    let result = if best.success { Ok(&best.plan) } else { Err(Outcome::StepLimit) };
+    let mut summary = SolveSummary::of(instance, planner, result, runtime_s);
+    summary.decisions = Some(best.decisions);
+    if let (Some(path), true) = (&cmd.output, best.success) {
+        let stats = PlanStats::of(&best.plan, runtime_s);
+        phalanx_io::write_plan_named(path, &best.plan, &named.names, &stats)
+            .with_context(|| format!("writing plan {}", path.display()))?;
+    }
+    report_summary(&summary, cmd.json)
 }

@@ -3,7 +3,7 @@
 //! serde-serialisable [`SolveSummary`] (outcome, runtime, search statistics, the validator's
 //! verdict and the plan metrics of SPEC §3).
 
-use phalanx_core::{Instance, PlanMetrics, validate};
+use phalanx_core::{Instance, Plan, PlanMetrics, validate};
 
 use crate::joint_astar::{self, JointAStarConfig};
 use crate::swarm::{self, SwarmConfig};
@@ -63,6 +63,9 @@ pub enum Outcome {
     Timeout,
     /// The node limit ran out.
     NodeLimit,
+    /// A learned policy's rollouts all ended at the step limit (`3 × side`) short of the
+    /// goals.
+    StepLimit,
 }
 
 impl Outcome {
@@ -108,12 +111,31 @@ pub struct SolveSummary {
     pub violation: Option<String>,
     /// The plan's metrics, when a plan came back.
     pub metrics: Option<SummaryMetrics>,
+    /// For a learned policy, the agent decisions of every rollout.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decisions: Option<u64>,
 }
 
 impl SolveSummary {
     /// Validates the report's plan and computes its metrics.
     pub fn new(instance: &Instance, choice: &PlannerChoice, report: &PlanReport) -> SolveSummary {
-        let (outcome, violation, metrics) = match &report.result {
+        let result = report.result.as_ref().map_err(|failure| Outcome::of_failure(*failure));
+        let mut summary = SolveSummary::of(instance, choice.name(), result, report.stats.runtime_s);
+        summary.high_level_expanded = report.stats.high_level_expanded;
+        summary.low_level_expanded = report.stats.low_level_expanded;
+        summary
+    }
+
+    /// The summary of a run of `planner` that returned `result` (a plan, or the outcome of
+    /// its failure) in `runtime_s` seconds: the plan validated and measured; no search
+    /// statistics.
+    pub fn of(
+        instance: &Instance,
+        planner: &str,
+        result: Result<&Plan, Outcome>,
+        runtime_s: f64,
+    ) -> SolveSummary {
+        let (outcome, violation, metrics) = match result {
             Ok(plan) => {
                 let violation = validate(instance, plan).err().map(|v| v.to_string());
                 let m = PlanMetrics::of(instance, plan);
@@ -127,16 +149,17 @@ impl SolveSummary {
                 let outcome = if violation.is_some() { Outcome::Invalid } else { Outcome::Solved };
                 (outcome, violation, Some(metrics))
             }
-            Err(failure) => (Outcome::of_failure(*failure), None, None),
+            Err(outcome) => (outcome, None, None),
         };
         SolveSummary {
-            planner: choice.name().to_owned(),
+            planner: planner.to_owned(),
             outcome,
-            runtime_s: report.stats.runtime_s,
-            high_level_expanded: report.stats.high_level_expanded,
-            low_level_expanded: report.stats.low_level_expanded,
+            runtime_s,
+            high_level_expanded: 0,
+            low_level_expanded: 0,
             violation,
             metrics,
+            decisions: None,
         }
     }
 
@@ -148,6 +171,7 @@ impl SolveSummary {
             Outcome::Unsolvable => "unsolvable",
             Outcome::Timeout => "timeout",
             Outcome::NodeLimit => "node_limit",
+            Outcome::StepLimit => "step_limit",
         };
         let mut lines = vec![
             format!("planner: {}", self.planner),
@@ -156,6 +180,9 @@ impl SolveSummary {
             format!("high_level_expanded: {}", self.high_level_expanded),
             format!("low_level_expanded: {}", self.low_level_expanded),
         ];
+        if let Some(decisions) = self.decisions {
+            lines.push(format!("decisions: {decisions}"));
+        }
         if let Some(violation) = &self.violation {
             lines.push(format!("violation: {violation}"));
         }

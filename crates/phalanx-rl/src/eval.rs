@@ -50,6 +50,8 @@ pub struct EvalEpisode {
     pub final_formation_loss: f64,
     /// For the hierarchy, the fraction of agent-steps that ran the formation policy.
     pub formation_share: Option<f64>,
+    /// Agent decisions of every rollout of the instance (agents × steps, summed).
+    pub decisions: u64,
     /// The joint positions of every step, starts first.
     #[serde(skip)]
     pub plan: Plan,
@@ -161,9 +163,11 @@ fn evaluate_with(
             rng.set_stream(((c as u64) << 20) | r as u64);
             let again = play(chunk, rollouts.epsilon, &mut rng)?;
             for (kept, new) in best.iter_mut().zip(again) {
+                let decisions = kept.decisions + new.decisions;
                 if better(&new, kept) {
                     *kept = new;
                 }
+                kept.decisions = decisions;
             }
         }
         res.extend(best);
@@ -256,6 +260,7 @@ impl<'a> Tracks<'a> {
                     start_formation_loss: m.formation_loss_per_step[0],
                     final_formation_loss: m.formation_loss_per_step.last().copied().unwrap_or(0.0),
                     formation_share,
+                    decisions: (instance.n_agents() * plan.horizon()) as u64,
                     plan,
                     choices,
                 }

@@ -222,13 +222,15 @@ pub enum Multiples {
         multiple: f64,
     },
     /// A weight-conditioned meta policy: the multiple is part of the meta observation; an
-    /// episode takes `1` with probability `p_one`, else a multiple drawn uniformly from
-    /// `[0, max]`.
+    /// episode takes `0` with probability `p_zero`, else a multiple drawn log-uniformly from
+    /// `[min, max]` (as many episodes between 0.01 and 0.1 as between 0.3 and 3).
     Conditioned {
+        /// The smallest positive multiple trained.
+        min: f64,
         /// The largest multiple trained.
         max: f64,
-        /// Probability of the multiple 1 (the shipped operating point).
-        p_one: f64,
+        /// Probability of the multiple 0 (path finding only).
+        p_zero: f64,
     },
 }
 
@@ -254,11 +256,11 @@ impl FormationWeight {
     pub fn draw_multiple(&self, rng: &mut ChaCha8Rng) -> f64 {
         match self.multiples {
             Multiples::Fixed { multiple } => multiple,
-            Multiples::Conditioned { max, p_one } => {
-                if rng.random::<f64>() < p_one {
-                    1.0
+            Multiples::Conditioned { min, max, p_zero } => {
+                if rng.random::<f64>() < p_zero {
+                    0.0
                 } else {
-                    rng.random::<f64>() * max
+                    (min.ln() + rng.random::<f64>() * (max.ln() - min.ln())).exp()
                 }
             }
         }

@@ -97,8 +97,8 @@ pub struct MetaSettings {
     /// The base weights `w_f` per team size, `(size, w_f)`; `None`: estimated at the start of
     /// the run with [`MetaSettings::estimate`] (Eq. 14) and written into the run's config.
     pub base_weight: Option<Vec<(usize, f64)>>,
-    /// The multiples of the base weight trained (default: weight-conditioned on `[0, 3]`,
-    /// half of the episodes at 1).
+    /// The multiples of the base weight trained (default: weight-conditioned, 0 in a tenth of
+    /// the episodes, else log-uniform on `[0.01, 3]`).
     pub multiples: Multiples,
     /// How the base weights are estimated when not given.
     pub estimate: WeightConfig,
@@ -110,7 +110,7 @@ impl Default for MetaSettings {
             pathfinding: None,
             formation: None,
             base_weight: None,
-            multiples: Multiples::Conditioned { max: 3.0, p_one: 0.5 },
+            multiples: Multiples::Conditioned { min: 0.01, max: 3.0, p_zero: 0.1 },
             estimate: WeightConfig::default(),
         }
     }

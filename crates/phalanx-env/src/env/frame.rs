@@ -28,7 +28,7 @@ pub(crate) const RADIUS: i32 = 16;
 
 /// How far (cells, in each axis) the placement may move from the rounded centroids to find
 /// free cells for every frame goal.
-pub(crate) const SHIFT: i32 = 2;
+pub(crate) const SHIFT: i32 = 0;
 
 /// Side of a frame goal's window.
 const SIDE: usize = (2 * RADIUS + 1) as usize;
