@@ -16,7 +16,7 @@ use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_core::Instance;
 use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, Task};
-use phalanx_rl::checkpoint::load_policy_any;
+use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{EvalSummary, Rollouts, evaluate, evaluate_hierarchy};
 use serde::Serialize;
 

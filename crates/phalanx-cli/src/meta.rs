@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::Context as _;
 use burn::tensor::Device;
-use phalanx_rl::checkpoint::{Header, load_policy_any};
+use phalanx_rl::policy_file::{Header, load_policy_any};
 use phalanx_rl::{
     FormationWeight, Hierarchy, Learner, LowLevel, MetaInfo, Policy, PolicyRef, TrainConfig,
     estimate_weight,
@@ -20,10 +20,10 @@ pub(crate) fn load(path: Option<&Path>, name: &str) -> anyhow::Result<(Policy, P
         Some(path) if path.is_file() => path.to_path_buf(),
         other => models::weights_file(other, name)?,
     };
-    let bytes = std::fs::read(&file).with_context(|| format!("reading {}", file.display()))?;
     let (policy, _) = load_policy_any(&file, &Device::flex())
         .with_context(|| format!("loading the {name} policy"))?;
-    Ok((policy, PolicyRef::of(&file, &bytes)))
+    let reference = PolicyRef::of(&file).with_context(|| format!("loading the {name} policy"))?;
+    Ok((policy, reference))
 }
 
 /// The low level of a meta run and what its files record: the policies of the settings (the

@@ -24,7 +24,7 @@ use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
-use phalanx_rl::checkpoint::load_policy_any;
+use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{Rollouts, evaluate, evaluate_hierarchy};
 
 use crate::{meta, models, util};

@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
-use phalanx_rl::checkpoint::load_policy_any;
+use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{WeightConfig, estimate_weight};
 
 use crate::{models, util};

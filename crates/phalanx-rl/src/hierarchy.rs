@@ -180,23 +180,25 @@ pub struct MetaInfo {
     pub formation: PolicyRef,
 }
 
-/// A policy file named by where it was and what it held.
+/// A policy named by the file it was read from and its weights.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PolicyRef {
     /// The path it was read from.
     pub file: String,
-    /// CRC-32 of its bytes, in hexadecimal.
+    /// CRC-32 of its network's weights as stored
+    /// ([`crate::policy_file::network_checksum`]), in hexadecimal.
     pub crc32: String,
 }
 
 impl PolicyRef {
-    /// The reference of the file at `path` with contents `bytes`.
-    pub fn of(path: &std::path::Path, bytes: &[u8]) -> PolicyRef {
-        PolicyRef {
-            file: path.display().to_string(),
-            crc32: format!("{:08x}", crc32fast::hash(bytes)),
-        }
+    /// The reference of the policy in the file at `path`.
+    ///
+    /// # Errors
+    /// If the file cannot be read.
+    pub fn of(path: &std::path::Path) -> Result<PolicyRef, crate::CheckpointError> {
+        let crc = crate::policy_file::network_checksum(path)?;
+        Ok(PolicyRef { file: path.display().to_string(), crc32: format!("{crc:08x}") })
     }
 }
 

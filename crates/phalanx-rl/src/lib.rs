@@ -11,6 +11,8 @@
 //! - [`weight`]: the balancing weight `w_f` of Eq. 14;
 //! - [`settings`]: a training run's settings, the task defaults and the collectors they build;
 //! - [`train`]: the collect/update loop ([`Collector`]) and its metric names;
+//! - [`policy_file`]: the file format of policy files and checkpoints (checksummed sections)
+//!   and loading a policy for acting;
 //! - [`checkpoint`]: atomic checkpoints of the whole learner with typed load errors.
 //!
 //! The environments it trains on implement `phalanx_env::MarlEnv` (flat observation buffers,
@@ -34,16 +36,17 @@
 pub mod checkpoint;
 pub mod eval;
 pub mod hierarchy;
+mod hyper;
 pub mod learner;
 pub mod net;
 pub mod policy;
+pub mod policy_file;
 pub mod replay;
 mod resume;
 pub mod settings;
 pub mod train;
 pub mod weight;
 
-pub use checkpoint::CheckpointError;
 pub use eval::evaluate_hierarchy;
 pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
 pub use hierarchy::{
@@ -52,6 +55,7 @@ pub use hierarchy::{
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
 pub use net::{EncoderConfig, QNet, QNetConfig, RecurrentState};
 pub use policy::Policy;
+pub use policy_file::CheckpointError;
 pub use replay::{Batch, Episode, Replay, SequenceMode};
 pub use settings::{MetaSettings, SettingsError, TrainConfig, TrainTask};
 pub use train::{Collector, MetricSink, metrics};

@@ -11,25 +11,10 @@ use std::collections::VecDeque;
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
 
 use phalanx_env::{MarlEnv, ObsBuffers, ObsShape};
 
-/// How training sequences are cut from episodes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum SequenceMode {
-    /// Whole episodes, padded to the longest in the batch (the paper; EPyMARL).
-    Episodes,
-    /// Windows of `len` trained transitions, preceded by up to `burn_in` transitions that only
-    /// warm the LSTM state (R2D2). A window near the episode start has a shorter burn-in.
-    Windows {
-        /// Trained transitions per window.
-        len: usize,
-        /// Transitions run before the window without loss.
-        burn_in: usize,
-    },
-}
+pub use crate::hyper::SequenceMode;
 
 /// One recorded episode.
 #[derive(Clone, Debug, Default)]

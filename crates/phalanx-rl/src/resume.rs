@@ -9,8 +9,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::checkpoint::CheckpointError;
 use crate::learner::Learner;
+use crate::policy_file::CheckpointError;
 use crate::replay::Episode;
 use crate::train::Collector;
 use phalanx_env::MarlEnv;

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::hierarchy::{FormationWeight, LowLevel, MetaEnv, Multiples};
-use crate::learner::LearnerConfig;
+use crate::hyper::LearnerConfig;
 use crate::net::QNetConfig;
 use crate::train::Collector;
 use crate::weight::WeightConfig;
@@ -223,6 +223,23 @@ impl TrainConfig {
             && !shaping.is_finite()
         {
             return invalid(format!("shaping {shaping} must be finite"));
+        }
+        match self.meta.multiples {
+            Multiples::Fixed { multiple } if !(multiple.is_finite() && multiple >= 0.0) => {
+                return invalid(format!("meta.multiples: multiple {multiple} is not a weight"));
+            }
+            Multiples::Conditioned { min, max, p_zero }
+                if !(min > 0.0
+                    && max >= min
+                    && max.is_finite()
+                    && (0.0..=1.0).contains(&p_zero)) =>
+            {
+                return invalid(format!(
+                    "meta.multiples: need 0 < min <= max and p_zero in [0, 1], not min {min}, \
+                     max {max}, p_zero {p_zero}"
+                ));
+            }
+            _ => {}
         }
         if let Some(base) = &self.meta.base_weight
             && let Some(&(k, w)) = base.iter().find(|(_, w)| !(w.is_finite() && *w >= 0.0))

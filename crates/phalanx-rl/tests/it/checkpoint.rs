@@ -4,7 +4,7 @@ use std::path::Path;
 
 use burn::tensor::Device;
 use phalanx_env::ObsBuffers;
-use phalanx_rl::checkpoint::{load_policy, load_policy_any, read_header};
+use phalanx_rl::policy_file::{load_policy, load_policy_any, read_header};
 use phalanx_rl::{CheckpointError, Collector, Learner, Policy, QNetConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -171,13 +171,13 @@ fn tensors_of_another_network_are_a_record_error() {
         let mut res = Vec::new();
         while !rest.is_empty() {
             let len = u64::from_le_bytes(rest[..8].try_into().unwrap()) as usize;
-            res.push(rest[..8 + len].to_vec());
-            rest = &rest[8 + len..];
+            res.push(rest[..8 + len + 4].to_vec());
+            rest = &rest[8 + len + 4..];
         }
         res
     };
     let (sa, sb) = (sections(&a), sections(&b));
-    let mut spliced = b"PHXRLCK1".to_vec();
+    let mut spliced = b"PHXRLCK3".to_vec();
     spliced.extend_from_slice(&sa[0]);
     for section in &sb[1..] {
         spliced.extend_from_slice(section);
