@@ -1,12 +1,13 @@
 //! CBS (and optionally ECBS) on seeded formation instances from `phalanx_gen::generate`, or on
 //! random single-cell-obstacle maps: prints one markdown row per (size, density, agents) with
 //! the success rate within the time limit, the median and maximum runtime and high-level
-//! nodes over the seeds, then every run as CSV on stderr.
+//! nodes over the seeds, then every run as CSV on stderr. With `--instances`, one row per
+//! instance file (MovingAI `.scen` or libMultiRobotPlanning `.yaml`) instead.
 //!
 //! ```text
 //! cargo run --release -p phalanx-plan --example cbs_sweep -- \
 //!     [--sizes 64,512] [--densities 0.05,0.15] [--agents 3,4,5] [--seeds 10] \
-//!     [--time-limit 60] [--random-obstacles]
+//!     [--time-limit 60] [--random-obstacles] [--instances a.yaml,b.yaml]
 //!     [--planner cbs|ecbs|plain-cbs|cbs-no-cat|cbs-no-cat-no-pc|cbs-no-cat-no-rect
 //!     |cbs:pc,bp,rect,target,cg,cat (any subset)]
 //! ```
@@ -66,6 +67,30 @@ fn cbs_config(name: &str) -> cbs::CbsConfig {
     }
 }
 
+/// One run of `planner` on `inst`: the CSV fields after the instance's own, the sum of costs
+/// (0 when unsolved) and the report.
+fn run(planner: &str, inst: &Instance, time_limit: f64) -> (String, usize, PlanReport) {
+    let budget = Budget::seconds(time_limit);
+    let report: PlanReport = match planner {
+        "ecbs" => ecbs::solve(inst, &ecbs::EcbsConfig::default(), &budget),
+        name => cbs::solve(inst, &cbs_config(name), &budget),
+    };
+    let (outcome, soc, makespan) = match &report.result {
+        Ok(plan) => {
+            validate(inst, plan).expect("valid plan");
+            let m = PlanMetrics::of(inst, plan);
+            ("ok".to_string(), m.sum_of_costs, m.makespan)
+        }
+        Err(failure) => (failure.to_string(), 0, 0),
+    };
+    let s = report.stats;
+    let csv = format!(
+        "{outcome},{:.4},{},{},{soc},{makespan}",
+        s.runtime_s, s.high_level_expanded, s.low_level_expanded
+    );
+    (csv, soc, report)
+}
+
 fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -82,6 +107,7 @@ fn main() {
     let mut time_limit = 60.0;
     let mut random = false;
     let mut planner = "cbs".to_string();
+    let mut instances: Vec<String> = Vec::new();
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         let mut value = || it.next().expect("a value");
@@ -93,6 +119,7 @@ fn main() {
             "--time-limit" => time_limit = value().parse().expect("a number"),
             "--random-obstacles" => random = true,
             "--planner" => planner = value(),
+            "--instances" => instances = value().split(',').map(str::to_string).collect(),
             other => panic!("unknown flag {other}"),
         }
     }
@@ -101,6 +128,25 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     eprintln!("planner,size,density,agents,seed,outcome,runtime_s,hl_nodes,ll_nodes,soc,makespan");
+    for path in &instances {
+        let inst = phalanx_io::read_instance(std::path::Path::new(path), None)
+            .expect("a readable instance")
+            .instance;
+        let (csv, soc, report) = run(&planner, &inst, time_limit);
+        let (size, n_agents) = (inst.grid().width(), inst.n_agents());
+        eprintln!("{planner},{path},-,{n_agents},-,{csv}");
+        let (solved, nodes, soc) = match report.result {
+            Ok(_) => ("1/1", report.stats.high_level_expanded.to_string(), soc.to_string()),
+            Err(_) => ("0/1", "-".to_string(), "-".to_string()),
+        };
+        let s = report.stats.runtime_s;
+        println!(
+            "| {planner} | {path} ({size}) | - | {n_agents} | {solved} | {s:.3} | {s:.3} | {nodes} | {soc} |"
+        );
+    }
+    if !instances.is_empty() {
+        return;
+    }
     for &size in &sizes {
         for &density in &densities {
             for &n_agents in &agents {
@@ -115,29 +161,16 @@ fn main() {
                             phalanx_gen::GenConfig { size, density, n_agents, seed, fov: 9 };
                         phalanx_gen::generate(&config).expect("generated instance")
                     };
-                    let budget = Budget::seconds(time_limit);
-                    let report: PlanReport = match planner.as_str() {
-                        "ecbs" => ecbs::solve(&inst, &ecbs::EcbsConfig::default(), &budget),
-                        name => cbs::solve(&inst, &cbs_config(name), &budget),
-                    };
+                    let (csv, soc, report) = run(&planner, &inst, time_limit);
                     let s = report.stats;
                     all_times.push(s.runtime_s);
-                    let (outcome, soc, makespan) = match &report.result {
-                        Ok(plan) => {
-                            validate(&inst, plan).expect("valid plan");
-                            let m = PlanMetrics::of(&inst, plan);
-                            solved += 1;
-                            times.push(s.runtime_s);
-                            nodes.push(s.high_level_expanded as f64);
-                            socs.push(m.sum_of_costs as f64);
-                            ("ok".to_string(), m.sum_of_costs, m.makespan)
-                        }
-                        Err(failure) => (failure.to_string(), 0, 0),
-                    };
-                    eprintln!(
-                        "{planner},{size},{density},{n_agents},{seed},{outcome},{:.4},{},{},{soc},{makespan}",
-                        s.runtime_s, s.high_level_expanded, s.low_level_expanded
-                    );
+                    if report.result.is_ok() {
+                        solved += 1;
+                        times.push(s.runtime_s);
+                        nodes.push(s.high_level_expanded as f64);
+                        socs.push(soc as f64);
+                    }
+                    eprintln!("{planner},{size},{density},{n_agents},{seed},{csv}");
                 }
                 let max = all_times.iter().copied().fold(0.0, f64::max);
                 println!(

@@ -579,46 +579,6 @@ impl Mdd {
         let layer = &self.layers[(t as usize).min(self.layers.len() - 1)];
         layer.len() == 1 && layer[0] == cell
     }
-
-    /// Whether some path of the MDD avoids every `(cell, t)` in `forbidden` (then forbidding
-    /// them does not raise the agent's cost). Edge constraints inside the MDD are ignored,
-    /// which can only answer "avoids" too often.
-    pub(crate) fn avoids(
-        &self,
-        grid: &Grid,
-        forbidden: &FxHashSet<(u32, u32)>,
-        scratch: &mut MddScratch,
-    ) -> bool {
-        scratch.ensure(grid.n_cells());
-        let cost = self.layers.len() as u32 - 1;
-        let goal = self.layers[cost as usize][0];
-        if forbidden.iter().any(|&(cell, t)| cell == goal && t >= cost) {
-            return false;
-        }
-        let mut reached: Vec<u32> =
-            self.layers[0].iter().copied().filter(|&c| !forbidden.contains(&(c, 0))).collect();
-        for t in 1..=cost {
-            if reached.is_empty() {
-                return false;
-            }
-            let mark = scratch.fresh();
-            for &cell in &reached {
-                scratch.stamp[cell as usize] = mark;
-            }
-            let stamp = &scratch.stamp;
-            reached = self.layers[t as usize]
-                .iter()
-                .copied()
-                .filter(|&cell| {
-                    !forbidden.contains(&(cell, t)) && {
-                        let (succ, n) = LowLevel::successors(grid, cell);
-                        succ[..n].iter().any(|&prev| stamp[prev as usize] == mark)
-                    }
-                })
-                .collect();
-        }
-        !reached.is_empty()
-    }
 }
 
 #[cfg(test)]

@@ -26,6 +26,12 @@
 //! start, so both agents on their barriers cross the rectangle in orthogonal directions and
 //! meet at the same time. The rectangle's far corner is pushed as far as the current paths
 //! allow, so both children exclude the current paths.
+//!
+//! Every rectangle conflict is split on its barriers, whether or not a barrier raises a cost.
+//! A vertex split of a crossing only moves it to the next cell along the barrier, at the same
+//! cost and with as many conflicts, so two agents whose paths cross (the conflict-avoidance
+//! table prefers two crossings to a shared stretch of path) grow the constraint tree
+//! exponentially at one `f`; one barrier split excludes every crossing of the rectangle.
 
 mod rectangle;
 
@@ -34,7 +40,7 @@ use std::collections::BinaryHeap;
 use std::rc::Rc;
 
 use phalanx_core::{DistanceMap, Instance};
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
 
 use crate::astar::{
     self, ConflictTable, Constraints, LowLevel, LowResult, Mdd, MddScratch, Query, at, path_cost,
@@ -50,9 +56,8 @@ pub struct CbsConfig {
     /// Adopt a child's path without branching when it has the parent's cost and fewer
     /// conflicts (bypassing, ICBS). Default `true`.
     pub bypass: bool,
-    /// Rectangle (symmetry) reasoning with barrier constraints (Li et al. 2019), used when a
-    /// barrier raises an agent's cost (checked on the MDDs, so it needs
-    /// `prioritize_conflicts`). Default `true`.
+    /// Rectangle (symmetry) reasoning with barrier constraints (Li et al. 2019): a vertex
+    /// conflict of two agents crossing a rectangle splits on the two barriers. Default `true`.
     pub rectangle_reasoning: bool,
     /// Target reasoning (Li, Gange, Harabor, Stuckey, Ma, Koenig, ICAPS 2020): a conflict at
     /// an agent's goal after it arrived splits on "it arrives later" / "the other agent keeps
@@ -331,7 +336,7 @@ impl<'a> Search<'a> {
             let parent_cost = self.nodes[idx as usize].cost;
             let parent_conflicts = self.nodes[idx as usize].n_conflicts;
             let mut children = Vec::with_capacity(2);
-            let branches = match self.rectangle_branches(idx, &conflict)? {
+            let branches = match self.rectangle_branches(idx, &conflict) {
                 Some(branches) => branches,
                 None => self.branches(idx, &conflict),
             };
@@ -369,46 +374,32 @@ impl<'a> Search<'a> {
         }
     }
 
-    /// The barrier branches of a rectangle conflict, or `None` when `conflict` is not one, or
-    /// when neither barrier raises its agent's cost (checked on the MDDs): then the barriers
-    /// would only move the conflicts around, and the conflict itself is split on.
-    fn rectangle_branches(
-        &mut self,
-        idx: u32,
-        conflict: &Conflict,
-    ) -> Result<Option<Branches>, PlanFailure> {
-        if !(self.config.rectangle_reasoning && self.config.prioritize_conflicts) {
-            return Ok(None);
+    /// The barrier branches of a rectangle conflict, or `None` when `conflict` is not one (or
+    /// is a goal conflict that target reasoning splits).
+    fn rectangle_branches(&self, idx: u32, conflict: &Conflict) -> Option<Branches> {
+        if !self.config.rectangle_reasoning {
+            return None;
         }
-        let ConflictKind::Vertex { cell } = conflict.kind else { return Ok(None) };
+        let ConflictKind::Vertex { cell } = conflict.kind else { return None };
         let goal_conflict =
             cell == self.goals[conflict.a1 as usize] || cell == self.goals[conflict.a2 as usize];
         if goal_conflict && self.config.target_reasoning {
-            return Ok(None);
+            return None;
         }
         let node = &self.nodes[idx as usize];
-        let Some(barriers) = rectangle::barriers(
-            self.instance.grid(),
-            [&node.paths[conflict.a1 as usize], &node.paths[conflict.a2 as usize]],
-            cell,
-            conflict.t,
-        ) else {
-            return Ok(None);
-        };
-        let mut raises = false;
-        for (agent, barrier) in [conflict.a1, conflict.a2].into_iter().zip(&barriers) {
-            let mdd = self.mdd(idx, agent)?;
-            let forbidden: FxHashSet<(u32, u32)> = barrier.iter().copied().collect();
-            raises |= !mdd.avoids(self.instance.grid(), &forbidden, &mut self.scratch);
-        }
-        if !raises {
-            return Ok(None);
-        }
+        let paths: [&[u32]; 2] =
+            [&node.paths[conflict.a1 as usize], &node.paths[conflict.a2 as usize]];
+        let barriers = rectangle::barriers(self.instance.grid(), paths, cell, conflict.t)?;
+        // Each child excludes its agent's current path, so the split makes progress.
+        debug_assert!(
+            paths.iter().zip(&barriers).all(|(p, b)| b.iter().any(|&(c, t)| at(p, t) == c)),
+            "a barrier misses its agent's current path"
+        );
         let [b1, b2] = barriers;
         let to_cons = |b: Vec<(u32, u32)>| {
             b.into_iter().map(|(cell, t)| NewConstraint::Vertex { cell, t }).collect()
         };
-        Ok(Some(vec![(conflict.a1, to_cons(b1)), (conflict.a2, to_cons(b2))]))
+        Some(vec![(conflict.a1, to_cons(b1)), (conflict.a2, to_cons(b2))])
     }
 
     /// The two branches of `conflict`: (agent, constraints to add).
