@@ -144,8 +144,8 @@ fn hierarchy_decision(c: &mut Criterion) {
     let mut meta = Policy::new(net, meta_config, &device);
     let mut group = c.benchmark_group("hierarchy_decision");
     for agents in [1, 3] {
-        let gen = GenConfig { size: 32, density: 0.15, n_agents: agents, seed: 3, fov: 9 };
-        let instance = phalanx_gen::generate(&gen).unwrap();
+        let config = GenConfig { size: 32, density: 0.15, n_agents: agents, seed: 3, fov: 9 };
+        let instance = phalanx_gen::generate(&config).unwrap();
         let mut envs = vec![HierEnv::new(EnvConfig::default(), agents, true).unwrap()];
         let mut obs = vec![ObsBuffers::new(agents, envs[0].meta_shape())];
         envs[0].reset_to(&instance, 1.0, 1.0, &mut obs[0]).unwrap();
