@@ -19,8 +19,10 @@ pub enum SequenceMode {
     },
 }
 
-/// Linear ε-greedy schedule over environment steps.
+/// Linear ε-greedy schedule over environment steps (default: the learner's, 1.0 → 0.05 over
+/// 30 000 steps).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct EpsilonSchedule {
     /// ε at step 0.
     pub start: f64,
@@ -28,6 +30,12 @@ pub struct EpsilonSchedule {
     pub end: f64,
     /// Environment steps of the linear decay.
     pub decay_steps: u64,
+}
+
+impl Default for EpsilonSchedule {
+    fn default() -> Self {
+        LearnerConfig::default().epsilon
+    }
 }
 
 impl EpsilonSchedule {
@@ -43,8 +51,10 @@ impl EpsilonSchedule {
 
 /// Learner hyper-parameters. Defaults are those both shipped policies were trained with (see
 /// `docs/learning.md`);
-/// [`LearnerConfig::paper`] is the paper's setting.
+/// [`LearnerConfig::paper`] is the paper's setting. A settings file may give any subset of
+/// the fields (the others keep their defaults).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct LearnerConfig {
     /// Discount γ (paper: 0.95).
     pub gamma: f32,

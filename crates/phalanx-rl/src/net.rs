@@ -40,8 +40,9 @@ pub enum EncoderConfig {
     },
 }
 
-/// Sizes of the Q-network.
+/// Sizes of the Q-network (a settings file may give any subset of the fields).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct QNetConfig {
     /// Observation channels `C` (SPEC §4: 4).
     pub channels: usize,

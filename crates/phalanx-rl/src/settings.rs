@@ -139,7 +139,7 @@ impl Default for TrainConfig {
 #[derive(Debug, thiserror::Error)]
 pub enum SettingsError {
     /// Not JSON of the schema (serde's message names the line, the column and the field).
-    #[error("{0}")]
+    #[error(transparent)]
     Json(#[from] serde_json::Error),
     /// A value that parses but cannot be used.
     #[error("{0}")]

@@ -301,3 +301,76 @@ fn eval_finds_the_shipped_models() {
         }
     }
 }
+
+#[test]
+fn learned_policies_solve_instance_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = ["gen", "--size", "16", "--density", "0.1", "--agents", "3", "--seed", "4"];
+    check(&phalanx(d, &[&args[..], &["-o", "inst.yaml"]].concat()), 0);
+    let args = ["solve", "inst.yaml", "--planner", "pathfinding", "--rollouts", "2"];
+    let (stdout, _) = check(&phalanx(d, &[&args[..], &["-o", "plan.yaml", "--json"]].concat()), 0);
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(summary["outcome"], "solved", "{stdout}");
+    assert!(summary["decisions"].as_u64().unwrap() > 0, "{stdout}");
+    check(&phalanx(d, &["validate", "inst.yaml", "plan.yaml"]), 0);
+
+    // Two agents that must swap in a corridor: no rollout gets there.
+    let swap = "map:\n  dimensions: [5, 1]\n  obstacles: []\nagents:\n- name: a\n  start: [0, 0]\n  goal: [4, 0]\n- name: b\n  start: [4, 0]\n  goal: [0, 0]\n";
+    std::fs::write(d.join("swap.yaml"), swap).unwrap();
+    let args =
+        ["solve", "swap.yaml", "--planner", "pathfinding", "--rollouts", "2", "-o", "none.yaml"];
+    let (stdout, _) = check(&phalanx(d, &args), 1);
+    assert!(stdout.contains("outcome: step_limit"), "{stdout}");
+    assert!(!d.join("none.yaml").exists(), "no plan is written");
+
+    for bad in [&["--rollouts", "0"][..], &["--random-prob", "2"], &["--weight", "NaN"]] {
+        let args = [&["solve", "inst.yaml", "--planner", "pathfinding"][..], bad].concat();
+        let (_, stderr) = check(&phalanx(d, &args), 2);
+        assert!(stderr.contains(bad[0]), "{bad:?}: {stderr}");
+    }
+    // A policy file with a flipped byte is refused, naming it.
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pathfinding/policy.bin");
+    let mut bytes = std::fs::read(shipped).unwrap();
+    let at = bytes.len() / 2;
+    bytes[at] ^= 1;
+    std::fs::create_dir(d.join("flipped")).unwrap();
+    std::fs::write(d.join("flipped/policy.bin"), bytes).unwrap();
+    let args = ["solve", "inst.yaml", "--planner", "pathfinding", "--weights", "flipped"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("flipped/policy.bin") && stderr.contains("damaged"), "{stderr}");
+}
+
+#[test]
+fn meta_training_weight_and_hierarchy_run_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (stdout, _) =
+        check(&phalanx(d, &["weight", "--agents", "3", "--episodes", "4", "--json"]), 0);
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert!(report["estimates"][0]["weight"].as_f64().unwrap() > 0.0, "{stdout}");
+    let config = r#"{
+        "agent_counts": [3], "n_envs": 2, "checkpoint_every": 5, "pool": {"n_maps": 2},
+        "env": {"step_limit": 12},
+        "learner": {"batch_size": 4, "learning_starts": 2, "train_every": 4},
+        "meta": {"base_weight": [[3, 4.5]]}
+    }"#;
+    std::fs::write(d.join("meta.json"), config).unwrap();
+    let args = ["train", "meta", "--config", "meta.json", "--steps", "60", "--out", "run"];
+    check(&phalanx(d, &args), 0);
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("run/config.json")).unwrap()).unwrap();
+    assert_eq!(saved["net"]["n_actions"], 2);
+    for multiple in ["0", "1"] {
+        let args = ["eval", "--policy", "hrl", "--weights", "run", "--maps", "2", "--size", "16"];
+        let args = [&args[..], &["--multiple", multiple, "--json"]].concat();
+        let (stdout, _) = check(&phalanx(d, &args), 0);
+        let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        assert_eq!(report["episodes"], 2, "{stdout}");
+    }
+    // A low-level policy file is no meta policy.
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pathfinding");
+    let args = ["eval", "--policy", "hrl", "--weights", shipped.to_str().unwrap(), "--maps", "1"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("not a meta policy"), "{stderr}");
+}
