@@ -230,17 +230,7 @@ impl HierEnv {
     /// If there is not one action per agent, an action index is above 4, or the episode has
     /// ended.
     pub fn step(&mut self, actions: &[u8], meta: &mut ObsBuffers) -> StepOut {
-        assert_eq!(actions.len(), self.n_agents, "one action per agent");
-        for (slot, &action) in self.actions.iter_mut().zip(actions) {
-            *slot = Action::from_index(usize::from(action)).expect("action index below 5");
-        }
-        let step = self.env.step(&self.actions);
-        let out = StepOut {
-            team_reward: step.team_reward,
-            terminated: step.terminated,
-            truncated: step.truncated,
-            collisions: step.info.n_cancelled,
-        };
+        let out = crate::marl::step_indices(&mut self.env, actions, &mut self.actions);
         self.observe(meta);
         out
     }
