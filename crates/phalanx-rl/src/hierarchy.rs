@@ -395,6 +395,9 @@ pub enum HierarchyError {
         /// The value the hierarchy needs.
         expected: usize,
     },
+    /// The formation weights name no team size.
+    #[error("the meta policy's formation weights give no base weight")]
+    NoBaseWeight,
 }
 
 impl Hierarchy {
@@ -402,7 +405,7 @@ impl Hierarchy {
     /// input of 3 or, weight-conditioned, 4) over `low`.
     ///
     /// # Errors
-    /// If the meta network does not fit.
+    /// If the meta network does not fit or `weight` has no base weight.
     pub fn new(
         meta: Policy,
         low: LowLevel,
@@ -419,6 +422,9 @@ impl Hierarchy {
             if found != expected {
                 return Err(HierarchyError::Meta { what, found, expected });
             }
+        }
+        if weight.base.is_empty() {
+            return Err(HierarchyError::NoBaseWeight);
         }
         Ok(Hierarchy { meta, low, weight, multiple })
     }

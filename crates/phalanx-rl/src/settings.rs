@@ -241,10 +241,13 @@ impl TrainConfig {
             }
             _ => {}
         }
-        if let Some(base) = &self.meta.base_weight
-            && let Some(&(k, w)) = base.iter().find(|(_, w)| !(w.is_finite() && *w >= 0.0))
-        {
-            return invalid(format!("meta.base_weight for {k} agents is {w}, not a weight"));
+        if let Some(base) = &self.meta.base_weight {
+            if base.is_empty() {
+                return invalid("meta.base_weight must name at least one team size".into());
+            }
+            if let Some(&(k, w)) = base.iter().find(|(_, w)| !(w.is_finite() && *w >= 0.0)) {
+                return invalid(format!("meta.base_weight for {k} agents is {w}, not a weight"));
+            }
         }
         Ok(())
     }
