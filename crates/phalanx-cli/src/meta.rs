@@ -31,7 +31,7 @@ pub(crate) fn load(path: Option<&Path>, name: &str) -> anyhow::Result<(Policy, P
 /// weights (the settings', else estimated now).
 pub(crate) fn low_level(
     config: &TrainConfig,
-    learner: &mut Learner,
+    learner: &Learner,
 ) -> anyhow::Result<(LowLevel, MetaInfo)> {
     let (pathfinding, pf_ref) = load(config.meta.pathfinding.as_deref(), "pathfinding")?;
     let (mut formation, fm_ref) = load(config.meta.formation.as_deref(), "formation")?;

@@ -154,7 +154,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let building = || format!("building the {} environment", task.name());
     if task == TrainTask::Meta {
-        let (low, meta) = meta::low_level(&config, &mut learner)?;
+        let (low, meta) = meta::low_level(&config, &learner)?;
         config.meta.base_weight = Some(meta.weight.base.clone());
         learner.set_meta(meta.clone());
         write_config(&saved_config, &config)?;
