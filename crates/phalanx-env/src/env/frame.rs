@@ -5,11 +5,12 @@
 //! slot of the layout, which is how it reshapes. On the way to far goals those inputs would
 //! lead it to the far goals instead. The frame gives it the inputs of its training: the goal
 //! layout translated onto the team so that an *anchor* agent's slot is a given cell (the
-//! anchor's cell after its move this step, see [`Env::update_frame`]), moved by at most
-//! [`SHIFT`] cells to the nearest placement whose cells are all free; each agent's *frame
+//! anchor's cell after its move this step, see [`Env::update_frame`]); each agent's *frame
 //! goal* is its cell of that placement, with BFS distances from each frame goal within a
 //! window of radius [`RADIUS`] around it (cells beyond the window count as blocked, as the
-//! training maps' walls do). Anchored at the leader's next cell, the formation policy brings
+//! training maps' walls do). The placement is exact: a slot inside a wall stays there and its
+//! agent gets as close as the BFS allows (moving the whole placement to free cells instead put
+//! the anchor off its own slot, and measured worse; `docs/hierarchy.md`). Anchored at the leader's next cell, the formation policy brings
 //! the others along with the leader: when the team is in formation and the leader moves, the
 //! others' frame goals move with it, one step away in the same direction. The formation
 //! channel, the other channels, the mask and the leader order are the episode's own: they do
@@ -25,10 +26,6 @@ use crate::obs::{CHANNELS, COST_SENTINEL};
 
 /// Radius of the window of each frame goal's distances (a window of `2R + 1` cells a side).
 pub(crate) const RADIUS: i32 = 16;
-
-/// How far (cells, in each axis) the placement may move from the rounded centroids to find
-/// free cells for every frame goal.
-pub(crate) const SHIFT: i32 = 0;
 
 /// Side of a frame goal's window.
 const SIDE: usize = (2 * RADIUS + 1) as usize;
@@ -57,17 +54,7 @@ impl Env {
     /// If `anchor` is not an agent.
     pub fn update_frame(&mut self, anchor: usize, anchor_cell: Cell) {
         let n = self.pos.len();
-        let (dx, dy) = (anchor_cell.x - self.goals[anchor].x, anchor_cell.y - self.goals[anchor].y);
-        // Offsets nearest first (ties: smaller |dy|, then dy, then dx), the unshifted first.
-        let mut shifts: Vec<(i32, i32)> =
-            (-SHIFT..=SHIFT).flat_map(|sy| (-SHIFT..=SHIFT).map(move |sx| (sx, sy))).collect();
-        shifts.sort_by_key(|&(sx, sy)| (sx * sx + sy * sy, sy.abs(), sy, sx));
-        let free = |cell: Cell| self.padded_free(cell);
-        let (ox, oy) = shifts
-            .into_iter()
-            .map(|(sx, sy)| (dx + sx, dy + sy))
-            .find(|&(ox, oy)| self.goals.iter().all(|g| free(g.offset(ox, oy))))
-            .unwrap_or((dx, dy));
+        let (ox, oy) = (anchor_cell.x - self.goals[anchor].x, anchor_cell.y - self.goals[anchor].y);
         let mut frame = std::mem::take(&mut self.frame);
         frame.goals.clear();
         frame.goals.extend(self.goals.iter().map(|g| g.offset(ox, oy)));
