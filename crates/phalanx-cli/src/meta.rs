@@ -26,6 +26,30 @@ pub(crate) fn load(path: Option<&Path>, name: &str) -> anyhow::Result<(Policy, P
     Ok((policy, reference))
 }
 
+/// Refuses low-level policies other than those `saved` records (`owner` names the meta
+/// policy in the message).
+fn same_low_level(
+    saved: &MetaInfo,
+    pathfinding: &PolicyRef,
+    formation: &PolicyRef,
+    owner: &str,
+) -> anyhow::Result<()> {
+    for (what, saved, now) in [
+        ("path-finding", &saved.pathfinding, pathfinding),
+        ("formation", &saved.formation, formation),
+    ] {
+        anyhow::ensure!(
+            saved.crc32 == now.crc32,
+            "{owner} was trained over the {what} policy {} (crc32 {}), not {} (crc32 {})",
+            saved.file,
+            saved.crc32,
+            now.file,
+            now.crc32
+        );
+    }
+    Ok(())
+}
+
 /// The low level of a meta run and what its files record: the policies of the settings (the
 /// shipped ones by default; on resume, the checkpoint's record must match them) and the base
 /// weights (the settings', else estimated now).
@@ -36,20 +60,7 @@ pub(crate) fn low_level(
     let (pathfinding, pf_ref) = load(config.meta.pathfinding.as_deref(), "pathfinding")?;
     let (mut formation, fm_ref) = load(config.meta.formation.as_deref(), "formation")?;
     if let Some(saved) = learner.meta() {
-        for (what, saved, now) in [
-            ("path-finding", &saved.pathfinding, &pf_ref),
-            ("formation", &saved.formation, &fm_ref),
-        ] {
-            anyhow::ensure!(
-                saved.crc32 == now.crc32,
-                "the checkpoint's meta policy was trained over the {what} policy {} (crc32 {}), \
-                 not {} (crc32 {})",
-                saved.file,
-                saved.crc32,
-                now.file,
-                now.crc32
-            );
-        }
+        same_low_level(saved, &pf_ref, &fm_ref, "the checkpoint's meta policy")?;
     }
     let base = match (&config.meta.base_weight, learner.meta()) {
         (Some(base), _) => base.clone(),
@@ -96,19 +107,7 @@ pub(crate) fn hierarchy(
     })?;
     let (pf, pf_ref) = load(pathfinding, "pathfinding")?;
     let (fm, fm_ref) = load(formation, "formation")?;
-    for (what, saved, now) in
-        [("path-finding", &info.pathfinding, &pf_ref), ("formation", &info.formation, &fm_ref)]
-    {
-        anyhow::ensure!(
-            saved.crc32 == now.crc32,
-            "{} was trained over the {what} policy {} (crc32 {}), not {} (crc32 {})",
-            file.display(),
-            saved.file,
-            saved.crc32,
-            now.file,
-            now.crc32
-        );
-    }
+    same_low_level(info, &pf_ref, &fm_ref, &file.display().to_string())?;
     let low = LowLevel::new(pf, fm).context("the low-level policies")?;
     Hierarchy::new(meta, low, info.weight.clone(), multiple)
         .with_context(|| format!("the meta policy {}", file.display()))

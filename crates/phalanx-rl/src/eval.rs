@@ -15,7 +15,7 @@
 //! instances and the seed (not on the thread count).
 
 use phalanx_core::{Instance, Plan, PlanMetrics, ViolationKind, validate};
-use phalanx_env::{Choice, EnvConfig, EnvError, HierEnv, ObsBuffers, StepOut, Task, TaskEnv};
+use phalanx_env::{Choice, Env, EnvConfig, EnvError, HierEnv, ObsBuffers, StepOut, Task, TaskEnv};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
@@ -193,9 +193,12 @@ struct Tracks<'a> {
 }
 
 impl<'a> Tracks<'a> {
-    /// Episodes at their starts; `lower_bounds[e]` is episode `e`'s largest start-to-goal
-    /// distance, `on_goal[e]` whether it starts solved.
-    fn new(chunk: &'a [Instance], lower_bounds: Vec<u32>, solved: &[bool], hier: bool) -> Self {
+    /// Episodes at their starts: `sims[e]` runs episode `e` (reset to its instance), whose
+    /// lower bound and whether it starts solved are read from it; with `hier`, choices are
+    /// recorded too.
+    fn new(chunk: &'a [Instance], sims: &[&Env], hier: bool) -> Self {
+        let lower_bounds = sims.iter().map(|sim| lower_bound(sim)).collect();
+        let solved: Vec<bool> = sims.iter().map(|sim| sim.is_done()).collect();
         let plans = chunk
             .iter()
             .map(|inst| {
@@ -208,7 +211,7 @@ impl<'a> Tracks<'a> {
             chunk,
             plans,
             collisions: vec![0; chunk.len()],
-            terminated: solved.to_vec(),
+            terminated: solved.clone(),
             running: solved.iter().map(|&done| !done).collect(),
             lower_bounds,
             choices: hier.then(|| vec![Vec::new(); chunk.len()]),
@@ -270,7 +273,7 @@ impl<'a> Tracks<'a> {
 }
 
 /// The largest start-to-goal BFS distance of the episode `env` runs.
-fn lower_bound(env: &phalanx_env::Env) -> u32 {
+fn lower_bound(env: &Env) -> u32 {
     (0..env.n_agents()).map(|a| env.cost_to_go(a)).max().unwrap_or(0)
 }
 
@@ -292,9 +295,8 @@ fn play_low_level(
         envs.push(task_env);
         obs.push(buffers);
     }
-    let bounds = envs.iter().map(|it| lower_bound(it.env())).collect();
-    let solved: Vec<bool> = envs.iter().map(|it| it.env().is_done()).collect();
-    let mut tracks = Tracks::new(chunk, bounds, &solved, false);
+    let sims: Vec<&Env> = envs.iter().map(|it| it.env()).collect();
+    let mut tracks = Tracks::new(chunk, &sims, false);
     let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
     let mut actions = vec![0_u8; chunk.iter().map(Instance::n_agents).sum()];
     policy.reset();
@@ -333,9 +335,8 @@ fn play_hierarchy(
         envs.push(hier);
         obs.push(buffers);
     }
-    let bounds = envs.iter().map(|it| lower_bound(it.env())).collect();
-    let solved: Vec<bool> = envs.iter().map(|it| it.env().is_done()).collect();
-    let mut tracks = Tracks::new(chunk, bounds, &solved, true);
+    let sims: Vec<&Env> = envs.iter().map(|it| it.env()).collect();
+    let mut tracks = Tracks::new(chunk, &sims, true);
     let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
     let rows = chunk.iter().map(Instance::n_agents).sum();
     let (mut choices, mut actions) = (vec![0_u8; rows], vec![0_u8; rows]);

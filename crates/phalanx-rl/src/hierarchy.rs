@@ -10,7 +10,6 @@
 //! - [`FormationWeight`]: the meta reward's weight, `multiple × w_f(k)` for teams of `k`,
 //!   with the base weights of Eq. 14 (`crate::weight`) and the multiples trained.
 
-use burn::tensor::Device;
 use phalanx_env::{
     Choice, EnvConfig, EnvError, HierEnv, MarlEnv, ObsBuffers, ObsShape, PoolConfig, StepOut,
     TrainPool,
@@ -82,16 +81,6 @@ impl LowLevel {
     /// The field of view both policies read.
     pub fn fov(&self) -> usize {
         self.pathfinding.config().fov
-    }
-
-    /// The most agents per team both policies take.
-    pub fn n_agents_max(&self) -> usize {
-        self.pathfinding.config().n_agents_max
-    }
-
-    /// The device the policies run on.
-    pub fn device(&self) -> &Device {
-        self.pathfinding.device()
     }
 
     /// Forget every episode's recurrent state.

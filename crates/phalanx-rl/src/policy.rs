@@ -36,11 +36,6 @@ impl Policy {
         &self.config
     }
 
-    /// The device the network runs on.
-    pub fn device(&self) -> &Device {
-        &self.device
-    }
-
     /// Replace the weights, keeping the recurrent state (a learner's policy after an update).
     pub fn set_net(&mut self, net: QNet) {
         self.net = net;
