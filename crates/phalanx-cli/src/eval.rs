@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_core::Instance;
 use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, Task};
 use phalanx_rl::policy_file::load_policy_any;
-use phalanx_rl::{EvalSummary, Rollouts, evaluate, evaluate_hierarchy};
+use phalanx_rl::{EvalSummary, Hierarchy, Rollouts, evaluate, evaluate_hierarchy};
 use serde::Serialize;
 
 use crate::{meta, models, util};
@@ -32,6 +32,9 @@ pub(crate) enum PolicyName {
     Formation,
     /// The hierarchy: the meta policy over the path-finding and formation policies.
     Hrl,
+    /// The hierarchy with the scripted leader–follower meta rule (--wait-above,
+    /// --patience) instead of a trained meta policy.
+    Leader,
 }
 
 impl PolicyName {
@@ -41,6 +44,7 @@ impl PolicyName {
             PolicyName::PathFinding => "pathfinding",
             PolicyName::Formation => "formation",
             PolicyName::Hrl => "meta",
+            PolicyName::Leader => "leader",
         }
     }
 
@@ -49,7 +53,7 @@ impl PolicyName {
         match self {
             PolicyName::PathFinding => Task::PathFinding,
             PolicyName::Formation => Task::Formation,
-            PolicyName::Hrl => Task::Meta,
+            PolicyName::Hrl | PolicyName::Leader => Task::Meta,
         }
     }
 }
@@ -100,11 +104,13 @@ pub(crate) struct EvalCmd {
     /// runs at.
     #[arg(long, default_value_t = 1.0)]
     multiple: f64,
-    /// hrl: the path-finding policy's directory or file (default: the one the meta policy
-    /// was trained over, if it is the shipped one).
+    #[command(flatten)]
+    leader: meta::LeaderArgs,
+    /// hrl, leader: the path-finding policy's directory or file (default: the one the meta
+    /// policy was trained over, if it is the shipped one; for leader, the shipped one).
     #[arg(long, value_name = "DIR")]
     pathfinding_weights: Option<PathBuf>,
-    /// hrl: the formation policy's directory or file.
+    /// hrl, leader: the formation policy's directory or file.
     #[arg(long, value_name = "DIR")]
     formation_weights: Option<PathBuf>,
     /// Print one JSON object instead of a table.
@@ -135,7 +141,12 @@ struct Report<'a> {
 /// Runs `phalanx eval`.
 pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     let name = cmd.policy.name();
-    let file = models::weights_file(cmd.weights.as_deref(), name)?;
+    let scripted = cmd.policy == PolicyName::Leader;
+    let file = if scripted {
+        models::weights_file(cmd.pathfinding_weights.as_deref(), "pathfinding")?
+    } else {
+        models::weights_file(cmd.weights.as_deref(), name)?
+    };
     let device = Device::flex();
     let (mut policy, header) =
         load_policy_any(&file, &device).with_context(|| format!("loading the {name} policy"))?;
@@ -146,6 +157,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         cmd.agents,
         header.net_config.n_agents_max
     );
+    let rule = cmd.leader.rule(scripted)?;
     let task = cmd.policy.task();
     let max_steps = cmd.max_steps.unwrap_or(match task {
         Task::Formation => FORMATION_STEPS,
@@ -172,7 +184,14 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     );
     let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
     let mut progress = |done: usize| bar.set_position(done as u64);
-    let episodes = if cmd.policy == PolicyName::Hrl {
+    let episodes = if scripted {
+        let low = meta::low_level_of(
+            cmd.pathfinding_weights.as_deref(),
+            cmd.formation_weights.as_deref(),
+        )?;
+        let mut hierarchy = Hierarchy::scripted(rule, low);
+        evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
+    } else if cmd.policy == PolicyName::Hrl {
         anyhow::ensure!(
             cmd.multiple.is_finite() && cmd.multiple >= 0.0,
             "--multiple {} must be a non-negative number",

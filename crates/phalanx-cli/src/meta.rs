@@ -8,8 +8,8 @@ use anyhow::Context as _;
 use burn::tensor::Device;
 use phalanx_rl::policy_file::{Header, load_policy_any};
 use phalanx_rl::{
-    FormationWeight, Hierarchy, Learner, LowLevel, MetaInfo, Policy, PolicyRef, TrainConfig,
-    estimate_weight,
+    FormationWeight, Hierarchy, Learner, LowLevel, MetaInfo, Policy, PolicyRef, ScriptedMeta,
+    TrainConfig, estimate_weight,
 };
 
 use crate::{models, util};
@@ -86,6 +86,44 @@ pub(crate) fn low_level(
     let weight = FormationWeight { base, multiples: config.meta.multiples };
     let low = LowLevel::new(pathfinding, formation).context("the low-level policies")?;
     Ok((low, MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref }))
+}
+
+/// The scripted leader–follower meta rule's flags (`--policy leader`, `--planner leader`).
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct LeaderArgs {
+    /// leader: the formation loss L_f above which the team closes up (every agent runs
+    /// formation) instead of moving on (default: never).
+    #[arg(long, value_name = "L_F")]
+    wait_above: Option<f64>,
+    /// leader: the longest run of closing-up steps before the leader moves on for a step.
+    #[arg(long, default_value_t = 8)]
+    patience: u32,
+}
+
+impl LeaderArgs {
+    /// The rule, checked; `scripted` says whether the command runs it (its flags are
+    /// refused otherwise).
+    pub(crate) fn rule(&self, scripted: bool) -> anyhow::Result<ScriptedMeta> {
+        if let Some(limit) = self.wait_above {
+            anyhow::ensure!(scripted, "--wait-above is a flag of the leader rule only");
+            anyhow::ensure!(
+                limit.is_finite() && limit >= 0.0,
+                "--wait-above {limit} must be a non-negative number"
+            );
+        }
+        Ok(ScriptedMeta::new(self.wait_above, self.patience))
+    }
+}
+
+/// The low level of the given path-finding and formation policies (the shipped ones by
+/// default).
+pub(crate) fn low_level_of(
+    pathfinding: Option<&Path>,
+    formation: Option<&Path>,
+) -> anyhow::Result<LowLevel> {
+    let (pf, _) = load(pathfinding, "pathfinding")?;
+    let (fm, _) = load(formation, "formation")?;
+    LowLevel::new(pf, fm).context("the low-level policies")
 }
 
 /// The hierarchy of the meta policy `meta` (read from `file` with `header`) over the

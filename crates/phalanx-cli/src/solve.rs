@@ -47,6 +47,9 @@ pub(crate) enum PlannerName {
     /// The learned path-finding policy alone.
     #[value(name = "pathfinding")]
     PathFinding,
+    /// The learned low level under the scripted leader–follower meta rule (--wait-above,
+    /// --patience).
+    Leader,
 }
 
 /// Plans an instance and reports the plan's metrics.
@@ -80,12 +83,18 @@ pub(crate) struct SolveCmd {
     /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
     #[arg(long, default_value_t = 1.0)]
     multiple: f64,
+    #[command(flatten)]
+    leader: meta::LeaderArgs,
     /// Seed of the rollouts' random actions.
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Where to write the plan (libMultiRobotPlanning YAML).
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Learned policies: write the best rollout with -o even when it does not reach the goals
+    /// (to look at a failure; such a plan breaks the validator's last rule, goal not reached).
+    #[arg(long)]
+    partial: bool,
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
@@ -102,7 +111,7 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     }
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let instance = &named.instance;
-    if matches!(cmd.planner, PlannerName::Hrl | PlannerName::PathFinding) {
+    if matches!(cmd.planner, PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader) {
         return learned(&cmd, &named);
     }
     let choice = match cmd.planner {
@@ -113,7 +122,7 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
             Objective::Weighted(cmd.weight.unwrap_or(1.0)),
         )),
         PlannerName::Swarm => PlannerChoice::Swarm(SwarmConfig::default()),
-        PlannerName::Hrl | PlannerName::PathFinding => {
+        PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader => {
             unreachable!("learned planners return above")
         }
     };
@@ -158,6 +167,8 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     );
     let instance = &named.instance;
     let hrl = cmd.planner == PlannerName::Hrl;
+    let scripted = cmd.planner == PlannerName::Leader;
+    let rule = cmd.leader.rule(scripted)?;
     let name = if hrl { "meta" } else { "pathfinding" };
     let file = models::weights_file(cmd.weights.as_deref(), name)?;
     let (mut policy, header) = load_policy_any(&file, &Device::flex())
@@ -170,7 +181,7 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
         instance.n_agents()
     );
     let fov = header.net_config.fov as u32;
-    let task = if hrl { Task::Meta } else { Task::PathFinding };
+    let task = if hrl || scripted { Task::Meta } else { Task::PathFinding };
     let env = EnvConfig { fov, task, ..EnvConfig::default() };
     let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
     let instances = std::slice::from_ref(instance);
@@ -178,17 +189,25 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let episodes = if hrl {
         let mut hierarchy = meta::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
         evaluate_hierarchy(&mut hierarchy, &env, instances, 1, rollouts, &mut |_| {})
+    } else if scripted {
+        let low = meta::low_level_of(Some(&file), None)?;
+        let mut hierarchy = phalanx_rl::Hierarchy::scripted(rule, low);
+        evaluate_hierarchy(&mut hierarchy, &env, instances, 1, rollouts, &mut |_| {})
     } else {
         evaluate(&mut policy, task, &env, instances, 1, rollouts, &mut |_| {})
     }
     .with_context(|| format!("running the {name} policy on {}", cmd.instance.display()))?;
     let runtime_s = started.elapsed().as_secs_f64();
     let best = &episodes[0];
-    let planner = if hrl { "hrl" } else { "pathfinding" };
+    let planner = match cmd.planner {
+        PlannerName::Hrl => "hrl",
+        PlannerName::Leader => "leader",
+        _ => "pathfinding",
+    };
     let result = if best.success { Ok(&best.plan) } else { Err(Outcome::StepLimit) };
     let mut summary = SolveSummary::of(instance, planner, result, runtime_s);
     summary.decisions = Some(best.decisions);
-    if let (Some(path), true) = (&cmd.output, best.success) {
+    if let (Some(path), true) = (&cmd.output, best.success || cmd.partial) {
         let stats = PlanStats::of(&best.plan, runtime_s);
         phalanx_io::write_plan_named(path, &best.plan, &named.names, &stats)
             .with_context(|| format!("writing plan {}", path.display()))?;

@@ -63,6 +63,8 @@ pub struct HierEnv {
     pathfinding: ObsBuffers,
     formation: ObsBuffers,
     actions: Vec<Action>,
+    /// The agent in front this step (the path-finding leader rule).
+    front: usize,
 }
 
 impl HierEnv {
@@ -84,6 +86,7 @@ impl HierEnv {
             pathfinding: ObsBuffers::new(n_agents, low),
             formation: ObsBuffers::new(n_agents, low),
             actions: vec![Action::Wait; n_agents],
+            front: 0,
         })
     }
 
@@ -150,14 +153,17 @@ impl HierEnv {
         self.pathfinding.order[0]
     }
 
-    /// Anchors the formation frame at the leader's slot after `leader_action` (`None`: its
-    /// current cell; a move into a blocked cell also leaves it there) and writes the
-    /// formation policy's observation.
+    /// Anchors the formation frame and writes the formation policy's observation. With
+    /// `leader_action` (the leader chose path finding), the leader's slot is the cell that
+    /// action leads to (its own cell when the move is blocked); with `None` (every agent chose
+    /// formation), the slot of the agent in front (the path-finding leader) is its own cell, so
+    /// that a team closing up gathers where its front stands instead of where its centre
+    /// does (anchored at the centre agent, the whole team drifted back while closing up).
     ///
     /// # Panics
     /// If `leader_action` is not an action index.
     pub fn place_frame(&mut self, leader_action: Option<u8>) {
-        let leader = self.leader();
+        let leader = if leader_action.is_some() { self.leader() } else { self.front };
         let here = self.env.positions()[leader];
         let next = leader_action
             .map(|a| Action::from_index(usize::from(a)).expect("action index below 5").apply(here))
@@ -212,6 +218,7 @@ impl HierEnv {
         let mut order = std::mem::take(&mut self.pathfinding.order);
         order.clear();
         let front = self.env.begin_turns(LeaderRule::PathFinding);
+        self.front = usize::from(front[0]);
         order.extend(
             front.iter().map(|&a| usize::from(a)).filter(|&a| chose(a, Choice::PathFinding)),
         );

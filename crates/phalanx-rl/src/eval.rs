@@ -322,7 +322,7 @@ fn play_hierarchy(
     epsilon: f64,
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<EvalEpisode>, EnvError> {
-    let conditioned = hierarchy.weight.conditioned();
+    let conditioned = hierarchy.conditioned();
     let mut envs = Vec::with_capacity(chunk.len());
     let mut obs = Vec::with_capacity(chunk.len());
     for instance in chunk {
@@ -330,7 +330,7 @@ fn play_hierarchy(
         let mut hier = HierEnv::new(env.clone(), n, conditioned)?;
         let mut buffers = ObsBuffers::new(n, hier.meta_shape());
         let multiple = hierarchy.multiple;
-        let w_f = multiple * hierarchy.weight.base_for(n);
+        let w_f = hierarchy.formation_weight(n);
         hier.reset_to(instance, w_f, multiple, &mut buffers)?;
         envs.push(hier);
         obs.push(buffers);
@@ -340,11 +340,10 @@ fn play_hierarchy(
     let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
     let rows = chunk.iter().map(Instance::n_agents).sum();
     let (mut choices, mut actions) = (vec![0_u8; rows], vec![0_u8; rows]);
-    hierarchy.meta.reset();
-    hierarchy.low.reset();
+    hierarchy.reset();
     let mut greedy = ChaCha8Rng::seed_from_u64(0);
     while tracks.running.contains(&true) {
-        hierarchy.meta.act_batch(&obs, 0.0, &mut greedy, &mut choices, None);
+        hierarchy.choose(&envs, &obs, &mut greedy, &mut choices);
         for (e, hier) in envs.iter_mut().enumerate() {
             let (at, n) = (offsets[e], chunk[e].n_agents());
             hier.set_choices(&choices[at..at + n]);

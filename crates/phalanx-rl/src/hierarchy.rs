@@ -357,18 +357,84 @@ impl MarlEnv for MetaEnv {
     }
 }
 
-/// The whole hierarchy at test time: the meta policy over the low level, run at one multiple
-/// of the base formation weight (read by a weight-conditioned meta policy).
+/// The whole hierarchy at test time: a meta policy (learned or scripted) over the low level,
+/// a learned one run at one multiple of the base formation weight (read by a
+/// weight-conditioned meta policy).
 #[derive(Clone, Debug)]
 pub struct Hierarchy {
-    /// The meta policy (two actions: [`Choice`] indices).
-    pub meta: Policy,
+    /// The meta policy.
+    pub meta: MetaPolicy,
     /// The frozen low-level policies.
     pub low: LowLevel,
-    /// The formation weights the meta policy was trained with.
-    pub weight: FormationWeight,
+    /// The formation weights the meta policy was trained with (a scripted one has none).
+    pub weight: Option<FormationWeight>,
     /// The multiple of the base weight to run at.
     pub multiple: f64,
+}
+
+/// What chooses each agent's low-level policy every step.
+#[derive(Clone, Debug)]
+pub enum MetaPolicy {
+    /// A trained meta network (two actions: [`Choice`] indices).
+    Learned(Box<Policy>),
+    /// A fixed rule ([`ScriptedMeta`]).
+    Scripted(ScriptedMeta),
+}
+
+/// A scripted meta policy, the leader–follower rule: the agent in front (the path-finding
+/// leader) runs path finding and the others formation, so that they follow the frame
+/// anchored at the leader's next cell. With `wait_above`, while the team's `L_f` is above it
+/// every agent runs formation (the leader, at the team's centre, holds; the others close
+/// up) as long as closing up helps: the first such step, and each next one while the last
+/// lowered `L_f`, at most `patience` in a row; then the leader moves on (a follower that
+/// cannot close up does not stop the team).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScriptedMeta {
+    /// `L_f` above which the team closes up instead of moving (`None`: never).
+    pub wait_above: Option<f64>,
+    /// The longest run of closing-up steps.
+    pub patience: u32,
+    waited: Vec<(u32, f64)>,
+}
+
+impl ScriptedMeta {
+    /// The rule with the given threshold and patience.
+    pub fn new(wait_above: Option<f64>, patience: u32) -> ScriptedMeta {
+        ScriptedMeta { wait_above, patience, waited: Vec::new() }
+    }
+
+    /// Forget the episodes' waiting runs.
+    pub fn reset(&mut self) {
+        self.waited.clear();
+    }
+
+    /// The choices of every episode of `envs` (laid out episode after episode), from each
+    /// episode's meta observation `obs` (its order names the leader) and `L_f`.
+    ///
+    /// # Panics
+    /// If `choices` does not have one entry per agent of `envs`.
+    pub fn choose(&mut self, envs: &[HierEnv], obs: &[ObsBuffers], choices: &mut [u8]) {
+        self.waited.resize(envs.len(), (0, 0.0));
+        let mut at = 0;
+        for ((env, obs), (waited, before)) in envs.iter().zip(obs).zip(&mut self.waited) {
+            let n = env.n_agents();
+            let out = &mut choices[at..at + n];
+            let loss = env.env().formation_loss();
+            let deformed = self.wait_above.is_some_and(|limit| loss > limit);
+            let helps = *waited == 0 || loss < *before - 1e-9;
+            if deformed && helps && *waited < self.patience {
+                *waited += 1;
+                *before = loss;
+                out.fill(Choice::Formation as u8);
+            } else {
+                *waited = 0;
+                out.fill(Choice::Formation as u8);
+                out[obs.order[0]] = Choice::PathFinding as u8;
+            }
+            at += n;
+        }
+        assert_eq!(at, choices.len(), "one choice per agent");
+    }
 }
 
 /// Why a meta policy does not fit its low level.
@@ -415,6 +481,51 @@ impl Hierarchy {
         if weight.base.is_empty() {
             return Err(HierarchyError::NoBaseWeight);
         }
-        Ok(Hierarchy { meta, low, weight, multiple })
+        Ok(Hierarchy {
+            meta: MetaPolicy::Learned(Box::new(meta)),
+            low,
+            weight: Some(weight),
+            multiple,
+        })
+    }
+
+    /// The hierarchy of a scripted meta policy over `low`.
+    pub fn scripted(rule: ScriptedMeta, low: LowLevel) -> Hierarchy {
+        Hierarchy { meta: MetaPolicy::Scripted(rule), low, weight: None, multiple: 0.0 }
+    }
+
+    /// Whether the meta observation carries the weight multiple.
+    pub fn conditioned(&self) -> bool {
+        self.weight.as_ref().is_some_and(FormationWeight::conditioned)
+    }
+
+    /// The meta reward's formation weight for teams of `n_agents` (0 for a scripted meta
+    /// policy, which has no reward).
+    pub fn formation_weight(&self, n_agents: usize) -> f64 {
+        self.weight.as_ref().map_or(0.0, |w| self.multiple * w.base_for(n_agents))
+    }
+
+    /// Forget every episode's state (recurrent states, waiting runs).
+    pub fn reset(&mut self) {
+        match &mut self.meta {
+            MetaPolicy::Learned(policy) => policy.reset(),
+            MetaPolicy::Scripted(rule) => rule.reset(),
+        }
+        self.low.reset();
+    }
+
+    /// The meta choices of every episode of `envs` from their meta observations `obs`
+    /// (greedy for a learned meta policy).
+    pub fn choose(
+        &mut self,
+        envs: &[HierEnv],
+        obs: &[ObsBuffers],
+        rng: &mut ChaCha8Rng,
+        choices: &mut [u8],
+    ) {
+        match &mut self.meta {
+            MetaPolicy::Learned(policy) => policy.act_batch(obs, 0.0, rng, choices, None),
+            MetaPolicy::Scripted(rule) => rule.choose(envs, obs, choices),
+        }
     }
 }

@@ -50,7 +50,8 @@ pub mod weight;
 pub use eval::evaluate_hierarchy;
 pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
 pub use hierarchy::{
-    FormationWeight, Hierarchy, LowLevel, MetaEnv, MetaInfo, Multiples, PolicyRef,
+    FormationWeight, Hierarchy, LowLevel, MetaEnv, MetaInfo, MetaPolicy, Multiples, PolicyRef,
+    ScriptedMeta,
 };
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
 pub use net::{EncoderConfig, QNet, QNetConfig, RecurrentState};

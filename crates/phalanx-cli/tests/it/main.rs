@@ -323,9 +323,33 @@ fn learned_policies_solve_instance_files() {
     let (stdout, _) = check(&phalanx(d, &args), 1);
     assert!(stdout.contains("outcome: step_limit"), "{stdout}");
     assert!(!d.join("none.yaml").exists(), "no plan is written");
+    // With --partial the best rollout is written: a plan that stops short of the goals.
+    check(&phalanx(d, &[&args[..], &["--partial"]].concat()), 1);
+    let (_, stderr) = check(&phalanx(d, &["validate", "swap.yaml", "none.yaml"]), 1);
+    assert!(stderr.contains("not on its goal"), "{stderr}");
 
-    for bad in [&["--rollouts", "0"][..], &["--random-prob", "2"], &["--weight", "NaN"]] {
-        let args = [&["solve", "inst.yaml", "--planner", "pathfinding"][..], bad].concat();
+    // The scripted leader rule over the shipped low level, with and without closing up.
+    for extra in [&[][..], &["--wait-above", "0.5"]] {
+        let args = [&["solve", "inst.yaml", "--planner", "leader", "-o", "lead.yaml"][..], extra];
+        check(&phalanx(d, &args.concat()), 0);
+        check(&phalanx(d, &["validate", "inst.yaml", "lead.yaml"]), 0);
+    }
+    let args = ["eval", "--policy", "leader", "--maps", "2", "--size", "16", "--wait-above", "1"];
+    let (stdout, _) = check(&phalanx(d, &[&args[..], &["--json"]].concat()), 0);
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(report["episodes"], 2, "{stdout}");
+    let args = ["solve", "inst.yaml", "--planner", "pathfinding", "--wait-above", "1"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("--wait-above"), "{stderr}");
+
+    for bad in [
+        &["--rollouts", "0"][..],
+        &["--random-prob", "2"],
+        &["--weight", "NaN"],
+        &["--wait-above", "NaN"],
+    ] {
+        let planner = if bad[0] == "--wait-above" { "leader" } else { "pathfinding" };
+        let args = [&["solve", "inst.yaml", "--planner", planner][..], bad].concat();
         let (_, stderr) = check(&phalanx(d, &args), 2);
         assert!(stderr.contains(bad[0]), "{bad:?}: {stderr}");
     }

@@ -2,6 +2,7 @@
 //! implementation against the fast one, plan replays, sequential acting, lockstep
 //! steps, pools and the `sim` command.
 
+mod hier;
 mod lockstep;
 mod mater;
 mod pool;

@@ -8,6 +8,7 @@ mod learner;
 mod net;
 mod policy;
 mod replay;
+mod scripted;
 
 use burn::tensor::Device;
 
