@@ -7,6 +7,7 @@
 //! Exit codes: 0 success, 1 an invalid plan (`validate`), 2 bad input (unreadable or
 //! malformed files, bad flags); see [`util`].
 
+mod bench;
 mod eval;
 #[path = "gen.rs"]
 mod generate;
@@ -53,6 +54,9 @@ enum Command {
     Eval(eval::EvalCmd),
     /// Estimate the meta reward's balancing weight w_f (the paper's Eq. 14).
     Weight(weight::WeightCmd),
+    /// Benchmark every method on the same fresh instances (Table II, the Pareto front).
+    #[command(subcommand)]
+    Bench(bench::BenchCmd),
 }
 
 fn main() -> ExitCode {
@@ -77,6 +81,7 @@ fn main() -> ExitCode {
         Command::Train(cmd) => train::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
         Command::Weight(cmd) => weight::run(cmd),
+        Command::Bench(cmd) => bench::run(cmd),
     };
     match res {
         Ok(code) => code,

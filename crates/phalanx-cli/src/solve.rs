@@ -14,18 +14,18 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::Context;
 use burn::tensor::Device;
-use phalanx_env::{EnvConfig, Task};
+use phalanx_eval::{Method, Settings, Solver};
 use phalanx_io::PlanStats;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
+use phalanx_rl::Rollouts;
 use phalanx_rl::policy_file::load_policy_any;
-use phalanx_rl::{Rollouts, evaluate, evaluate_hierarchy};
 
 use crate::{meta, models, util};
 
@@ -171,7 +171,7 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let rule = cmd.leader.rule(scripted)?;
     let name = if hrl { "meta" } else { "pathfinding" };
     let file = models::weights_file(cmd.weights.as_deref(), name)?;
-    let (mut policy, header) = load_policy_any(&file, &Device::flex())
+    let (policy, header) = load_policy_any(&file, &Device::flex())
         .with_context(|| format!("loading the {name} policy"))?;
     let n_max = header.net_config.n_agents_max;
     anyhow::ensure!(
@@ -180,36 +180,29 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
         cmd.instance.display(),
         instance.n_agents()
     );
-    let fov = header.net_config.fov as u32;
-    let task = if hrl || scripted { Task::Meta } else { Task::PathFinding };
-    let env = EnvConfig { fov, task, ..EnvConfig::default() };
-    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
-    let instances = std::slice::from_ref(instance);
-    let started = Instant::now();
-    let episodes = if hrl {
-        let mut hierarchy = meta::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
-        evaluate_hierarchy(&mut hierarchy, &env, instances, 1, rollouts, &mut |_| {})
+    let solver = if hrl {
+        let hierarchy = meta::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
+        Solver::Hierarchy(Box::new(hierarchy))
     } else if scripted {
         let low = meta::low_level_of(Some(&file), None)?;
-        let mut hierarchy = phalanx_rl::Hierarchy::scripted(rule, low);
-        evaluate_hierarchy(&mut hierarchy, &env, instances, 1, rollouts, &mut |_| {})
+        Solver::Hierarchy(Box::new(phalanx_rl::Hierarchy::scripted(rule, low)))
     } else {
-        evaluate(&mut policy, task, &env, instances, 1, rollouts, &mut |_| {})
-    }
-    .with_context(|| format!("running the {name} policy on {}", cmd.instance.display()))?;
-    let runtime_s = started.elapsed().as_secs_f64();
-    let best = &episodes[0];
+        Solver::PathFinding(Box::new(policy))
+    };
     let planner = match cmd.planner {
         PlannerName::Hrl => "hrl",
         PlannerName::Leader => "leader",
         _ => "pathfinding",
     };
-    let result = if best.success { Ok(&best.plan) } else { Err(Outcome::StepLimit) };
-    let mut summary = SolveSummary::of(instance, planner, result, runtime_s);
-    summary.decisions = Some(best.decisions);
-    if let (Some(path), true) = (&cmd.output, best.success || cmd.partial) {
-        let stats = PlanStats::of(&best.plan, runtime_s);
-        phalanx_io::write_plan_named(path, &best.plan, &named.names, &stats)
+    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
+    let settings = Settings { time_limit_s: cmd.time_limit, rollouts };
+    let (summary, plan) = Method::new(planner, solver)
+        .run(instance, &settings)
+        .with_context(|| format!("running the {name} policy on {}", cmd.instance.display()))?;
+    let solved = summary.outcome == Outcome::Solved;
+    if let (Some(path), Some(plan), true) = (&cmd.output, &plan, solved || cmd.partial) {
+        let stats = PlanStats::of(plan, summary.runtime_s);
+        phalanx_io::write_plan_named(path, plan, &named.names, &stats)
             .with_context(|| format!("writing plan {}", path.display()))?;
     }
     report_summary(&summary, cmd.json)

@@ -11,14 +11,16 @@
 //!    step's acting order for the low level: the path finders first, front first, then the
 //!    formation followers, nearest the team's centroid first;
 //! 3. the low-level policies act in that order, each agent through the policy it chose, with
-//!    the message of the actions taken before it whichever policy took them. The path-finding
+//!    the message of the actions taken before it whichever policy took them, and its mask
+//!    clipped by those actions ([`HierEnv::clip_claimed`]). The path-finding
 //!    policy reads the episode's observation with path-finding clipping
 //!    ([`HierEnv::pathfinding_obs`]); the formation policy reads the formation frame (the goal
 //!    layout placed on the team, see `Env::update_frame`) with formation clipping
 //!    ([`HierEnv::formation_obs`]). The frame is anchored at the leader (the first in the
 //!    order): once the leader has acted, [`HierEnv::place_frame`] puts the leader's slot on
-//!    the cell its action leads to (its own cell when it chose formation or its move is
-//!    blocked), so that formation followers move with it. Both buffers are written every
+//!    the cell its action leads to (its own cell when its move is blocked), so that
+//!    formation followers move with it; when every agent chose formation, the front agent's
+//!    slot is its own cell (the team closes up on its front). Both buffers are written every
 //!    step, so both policies' recurrent states can advance every step whichever runs;
 //! 4. [`HierEnv::step`] applies the joint action; the reward is the meta task's (Table I:
 //!    collision −50, +1 a move towards the goal, −`w_f · L_f` per agent).
@@ -179,6 +181,38 @@ impl HierEnv {
             env.write_frame_grid(agent, grid);
             env.write_frame_vector(agent, vector);
             env.write_mask(agent, Clip::Formation, mask);
+        }
+    }
+
+    /// Message-aware clipping: removes from `mask` (agent `agent`'s allowed actions) the moves
+    /// that the actions already chosen this step rule out, `actions[i]` for the agents `i` of
+    /// `earlier`: a move into the cell an earlier agent's action leads to (a vertex conflict)
+    /// or into the cell of an earlier agent that moves into this agent's cell (a swap). Such
+    /// a move would be cancelled by the step; an agent knows it from the message (the
+    /// earlier actions) and its view (their cells lie within two cells of its own). Waiting
+    /// stays as it was.
+    ///
+    /// # Panics
+    /// If an action index is above 4 or the mask is not five long.
+    pub fn clip_claimed(&self, agent: usize, earlier: &[usize], actions: &[u8], mask: &mut [bool]) {
+        assert_eq!(mask.len(), N_ACTIONS, "one flag per action");
+        let positions = self.env.positions();
+        let here = positions[agent];
+        let next = |i: usize| {
+            Action::from_index(usize::from(actions[i]))
+                .expect("action index below 5")
+                .apply(positions[i])
+        };
+        for (index, allowed) in mask.iter_mut().enumerate() {
+            let action = Action::from_index(index).expect("five actions");
+            if !*allowed || action == Action::Wait {
+                continue;
+            }
+            let target = action.apply(here);
+            *allowed = !earlier.iter().any(|&i| {
+                let to = next(i);
+                to == target || (to == here && positions[i] == target)
+            });
         }
     }
 

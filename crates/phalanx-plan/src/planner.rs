@@ -50,7 +50,7 @@ pub fn run_planner(instance: &Instance, choice: &PlannerChoice, budget: &Budget)
 }
 
 /// How a run ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
     /// A plan came back and the validator accepts it.
@@ -80,7 +80,7 @@ impl Outcome {
 }
 
 /// The metrics of a returned plan (SPEC §3).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SummaryMetrics {
     /// Every agent reaches its goal.
     pub success: bool,
@@ -95,7 +95,7 @@ pub struct SummaryMetrics {
 }
 
 /// What `phalanx solve` prints: one run of one planner on one instance.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SolveSummary {
     /// The planner's short name.
     pub planner: String,
@@ -112,7 +112,7 @@ pub struct SolveSummary {
     /// The plan's metrics, when a plan came back.
     pub metrics: Option<SummaryMetrics>,
     /// For a learned policy, the agent decisions of every rollout.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub decisions: Option<u64>,
 }
 

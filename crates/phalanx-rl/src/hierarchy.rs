@@ -10,6 +10,7 @@
 //! - [`FormationWeight`]: the meta reward's weight, `multiple × w_f(k)` for teams of `k`,
 //!   with the base weights of Eq. 14 (`crate::weight`) and the multiples trained.
 
+use phalanx_env::obs::N_ACTIONS;
 use phalanx_env::{
     Choice, EnvConfig, EnvError, HierEnv, MarlEnv, ObsBuffers, ObsShape, PoolConfig, StepOut,
     TrainPool,
@@ -83,6 +84,11 @@ impl LowLevel {
         self.pathfinding.config().fov
     }
 
+    /// The agent slots both policies have (the largest team they can run).
+    pub fn n_agents_max(&self) -> usize {
+        self.pathfinding.config().n_agents_max
+    }
+
     /// Forget every episode's recurrent state.
     pub fn reset(&mut self) {
         self.pathfinding.reset();
@@ -105,7 +111,9 @@ impl LowLevel {
     /// chose path finding act; the formation frames are anchored at the leaders' next cells
     /// ([`HierEnv::place_frame`]); the formation recurrent pass for every agent; the leaders
     /// that chose formation act; then the other ranks in order, each agent through its
-    /// chosen policy's head with the message of the actions taken before it.
+    /// chosen policy's head with the message of the actions taken before it, its mask
+    /// clipped by those actions ([`HierEnv::clip_claimed`]: no move into a cell an earlier
+    /// agent takes).
     ///
     /// # Panics
     /// If the lengths disagree or a choice is not 0 or 1.
@@ -134,7 +142,8 @@ impl LowLevel {
             pf_features = self.pathfinding.recurrent_step(&pf_obs);
             turns = Turns::new(&pf_obs, self.pathfinding.config());
             let policy = &self.pathfinding;
-            turns.act(0, &pf_leaders, policy, &pf_features, &pf_obs, epsilon, rng, actions, None);
+            let (features, obs) = (&pf_features, &pf_obs);
+            turns.act(0, &pf_leaders, policy, features, obs, epsilon, rng, actions, None, None);
         }
         for (e, env) in envs.iter_mut().enumerate() {
             let moved = !formation(e, leaders[e]);
@@ -144,14 +153,27 @@ impl LowLevel {
         let fm_obs: Vec<&ObsBuffers> = envs.iter().map(HierEnv::formation_obs).collect();
         let fm_features = self.formation.recurrent_step(&fm_obs);
         let (pf, fm) = (&self.pathfinding, &self.formation);
-        turns.act(0, &fm_leaders, fm, &fm_features, &fm_obs, epsilon, rng, actions, None);
+        turns.act(0, &fm_leaders, fm, &fm_features, &fm_obs, epsilon, rng, actions, None, None);
         let max_agents = envs.iter().map(HierEnv::n_agents).max().unwrap_or(0);
+        let mut masks = vec![false; rows * N_ACTIONS];
         for rank in 1..max_agents {
             let (pf_group, fm_group): (Vec<usize>, Vec<usize>) = (0..envs.len())
                 .filter(|&e| rank < envs[e].n_agents())
                 .partition(|&e| !formation(e, pf_obs[e].order[rank]));
-            turns.act(rank, &pf_group, pf, &pf_features, &pf_obs, epsilon, rng, actions, None);
-            turns.act(rank, &fm_group, fm, &fm_features, &fm_obs, epsilon, rng, actions, None);
+            for (group, obs) in [(&pf_group, &pf_obs), (&fm_group, &fm_obs)] {
+                for &e in group {
+                    let order = &obs[e].order;
+                    let agent = order[rank];
+                    let row = offsets[e] + agent;
+                    let mask = &mut masks[row * N_ACTIONS..(row + 1) * N_ACTIONS];
+                    mask.copy_from_slice(obs[e].mask_of(agent));
+                    let team = &actions[offsets[e]..offsets[e] + envs[e].n_agents()];
+                    envs[e].clip_claimed(agent, &order[..rank], team, mask);
+                }
+            }
+            let m = Some(masks.as_slice());
+            turns.act(rank, &pf_group, pf, &pf_features, &pf_obs, epsilon, rng, actions, m, None);
+            turns.act(rank, &fm_group, fm, &fm_features, &fm_obs, epsilon, rng, actions, m, None);
         }
     }
 }

@@ -171,7 +171,7 @@ impl Policy {
         for rank in 0..max_agents {
             let acting: Vec<usize> = (0..obs.len()).filter(|&e| rank < obs[e].n_agents).collect();
             let q = q_out.as_deref_mut();
-            turns.act(rank, &acting, self, &features, &obs, epsilon, rng, actions, q);
+            turns.act(rank, &acting, self, &features, &obs, epsilon, rng, actions, None, q);
         }
     }
 
@@ -244,8 +244,9 @@ impl Turns {
     /// agents) go through `policy`'s head together (`features`: its recurrent features of the
     /// whole batch, `[Σ N_e, 1, H]`; `obs`: its observations, for the order and the masks),
     /// each with its team's message; then ε-greedy among the allowed actions, random draws
-    /// episode by episode. Writes `actions[row]` and, when given, the masked Q-values
-    /// `q_out[row]`.
+    /// episode by episode. The allowed actions are the observation's mask, or those of
+    /// `masks[row]` when given (`[Σ N_e, A]`). Writes `actions[row]` and, when given, the
+    /// masked Q-values `q_out[row]`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn act(
         &mut self,
@@ -257,6 +258,7 @@ impl Turns {
         epsilon: f64,
         rng: &mut ChaCha8Rng,
         actions: &mut [u8],
+        masks: Option<&[bool]>,
         mut q_out: Option<&mut [f32]>,
     ) {
         let (n_actions, msg_dim) = (self.n_actions, self.msg_dim);
@@ -279,7 +281,11 @@ impl Turns {
         let mut q_all = to_vec(policy.net.head(feat, msg)); // [n, 1, A]
         for (i, &e) in episodes.iter().enumerate() {
             let agent_idx = obs[e].order[rank];
-            let mask = obs[e].mask_of(agent_idx);
+            let row = self.offsets[e] + agent_idx;
+            let mask = match masks {
+                Some(masks) => &masks[row * n_actions..(row + 1) * n_actions],
+                None => obs[e].mask_of(agent_idx),
+            };
             let q = &mut q_all[i * n_actions..(i + 1) * n_actions];
             for (value, &ok) in q.iter_mut().zip(mask) {
                 if !ok {
@@ -293,7 +299,6 @@ impl Turns {
             } else {
                 masked_argmax(q, mask)
             };
-            let row = self.offsets[e] + agent_idx;
             actions[row] = action as u8;
             if let Some(out) = q_out.as_deref_mut() {
                 out[row * n_actions..(row + 1) * n_actions].copy_from_slice(q);

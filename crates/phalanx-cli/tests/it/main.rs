@@ -398,3 +398,44 @@ fn meta_training_weight_and_hierarchy_run_end_to_end() {
     let (_, stderr) = check(&phalanx(d, &args), 2);
     assert!(stderr.contains("not a meta policy"), "{stderr}");
 }
+
+#[test]
+fn bench_quick_runs_every_row_and_method_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = ["bench", "table2", "--quick", "--out", "b"];
+    let (stdout, stderr) = check(&phalanx(d, &args), 0);
+    assert!(stderr.contains("no meta policy found"), "{stderr}");
+    let text = std::fs::read_to_string(d.join("b/runs.jsonl")).unwrap();
+    let records: Vec<serde_json::Value> =
+        text.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let methods = ["cbs", "ecbs", "swarm", "jsa", "pathfinding", "leader"];
+    // 7 rows × 2 instances × 6 methods, every plan valid.
+    assert_eq!(records.len(), 7 * 2 * methods.len());
+    for r in &records {
+        assert_ne!(r["run"]["outcome"], "invalid", "{r}");
+        assert!(r["run"]["violation"].is_null(), "{r}");
+    }
+    for row in ["20x3@0.15", "20x3@0.05", "20x5@0.05", "512x3@0.15 (20²)", "1024x3@0.15 (20²)"] {
+        for m in methods {
+            assert!(records.iter().any(|r| r["case"] == row && r["method"] == m), "{row} {m}");
+        }
+    }
+    for file in ["runs.csv", "cells.json", "table2.md", "table2.svg", "bench.json"] {
+        assert!(d.join("b").join(file).is_file(), "{file}");
+    }
+    assert!(stdout.contains("| 20² | 3 | 0.15 | cbs |"), "{stdout}");
+    // Not overwritten without --resume.
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("--resume"), "{stderr}");
+    // Killed after some runs: --resume makes only the missing ones.
+    let kept: Vec<&str> = text.lines().take(10).collect();
+    std::fs::write(d.join("b/runs.jsonl"), format!("{}\n", kept.join("\n"))).unwrap();
+    check(&phalanx(d, &[&args[..], &["--resume"]].concat()), 0);
+    let again = std::fs::read_to_string(d.join("b/runs.jsonl")).unwrap();
+    assert_eq!(again.lines().count(), records.len());
+    assert_eq!(again.lines().take(10).collect::<Vec<_>>(), kept);
+    // Other settings are refused on resume.
+    let (_, stderr) = check(&phalanx(d, &[&args[..], &["--resume", "--seed", "5"]].concat()), 2);
+    assert!(stderr.contains("other settings"), "{stderr}");
+}

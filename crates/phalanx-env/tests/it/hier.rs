@@ -57,3 +57,31 @@ fn a_team_closing_up_gathers_on_its_front_agent() {
     // The slots are placed with agent 2's on its own cell, not the centre agent's.
     assert_eq!(hier.env().frame_goals(), [c(2, 1), c(3, 1), c(4, 1)]);
 }
+
+#[test]
+fn moves_into_cells_earlier_agents_take_are_clipped() {
+    // Agents 0, 1, 2 in a row at x = 1, 2, 3 (y = 1); actions: 0 Up, 1 Down, 2 Left, 3 Right,
+    // 4 Wait.
+    let (hier, _) = row();
+    let all = [true; 5];
+    let mut mask = all;
+    // Agent 2 moved left into agent 1's cell: agent 1 may not move right (a swap) and may
+    // still wait or go elsewhere.
+    hier.clip_claimed(1, &[2], &[4, 4, 2], &mut mask);
+    assert_eq!(mask, [true, true, true, false, true]);
+    // Agents 0 and 2 moved up, to (1, 2) and (3, 2): their old cells are free after the
+    // step, and none of agent 1's moves lands on (1, 2) or (3, 2).
+    let mut mask = all;
+    hier.clip_claimed(1, &[0, 2], &[0, 4, 0], &mut mask);
+    assert_eq!(mask, all);
+    // Agent 0 waits at (1, 1): agent 1 may not move left into it; agent 2 moved down to
+    // (3, 0): agent 1 may still move down to (2, 0).
+    let mut mask = all;
+    hier.clip_claimed(1, &[0, 2], &[4, 4, 1], &mut mask);
+    assert_eq!(mask, [true, true, false, true, true]);
+    // Agent 0 moved right into agent 1's cell: moving left (a swap) is clipped, waiting
+    // (then agent 0's move is cancelled) is not; a move already masked stays masked.
+    let mut mask = [false, true, true, true, true];
+    hier.clip_claimed(1, &[0], &[3, 4, 4], &mut mask);
+    assert_eq!(mask, [false, true, false, true, true]);
+}

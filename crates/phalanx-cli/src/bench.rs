@@ -1,0 +1,313 @@
+//! `phalanx bench`: every method on the same fresh instances, scored by the one validator;
+//! the work is `phalanx_eval`.
+//!
+//! - `bench table2`: the seven rows of the paper's Table II (SPEC §8);
+//! - `bench pareto`: the 20² rows of Table II, with the methods' weight sweeps (the learned
+//!   front beside joint-state A*'s exact one).
+//!
+//! Methods are named `NAME[:PARAM]`: `cbs`, `ecbs[:W]` (suboptimality bound, default 1.2),
+//! `swarm`, `astar`, `jsa` (formation first, then makespan) or `jsa:W` (minimises
+//! `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the scripted rule, closing up above
+//! `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`, default 1). Joint-state A* runs on maps
+//! up to `--jsa-max-side` only.
+//!
+//! Output in `--out`: `runs.jsonl` (one record per run, appended as it finishes; `--resume`
+//! continues from it), `runs.csv`, `cells.json` (per case and method), `<name>.md` (the table,
+//! with the paper's figures beside the hierarchy's and CBS's) and `<name>.svg`.
+//! Each run is timed alone on one thread: the runs go one after another, and the tensor
+//! library and the environment run on one thread.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use indicatif::{ProgressBar, ProgressStyle};
+use phalanx_eval::bench::{self, Plan};
+use phalanx_eval::report::{self, Cell};
+use phalanx_eval::runs::{self, Appender};
+use phalanx_eval::{Case, Method, Settings, Solver};
+use phalanx_plan::PlannerChoice;
+use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
+use phalanx_plan::{astar, cbs, ecbs, swarm};
+use phalanx_rl::{Hierarchy, Rollouts};
+
+use crate::{meta, models, util};
+
+/// The benchmarks.
+#[derive(Debug, clap::Subcommand)]
+pub(crate) enum BenchCmd {
+    /// The rows of the paper's Table II (SPEC §8), every method on the same instances.
+    Table2(BenchArgs),
+    /// The Pareto front on the 20² rows: weight sweeps of the methods, with joint-state A*'s
+    /// exact front.
+    Pareto(BenchArgs),
+}
+
+/// The flags of every benchmark.
+#[derive(Debug, clap::Args)]
+pub(crate) struct BenchArgs {
+    /// Instances per row (the first of the row's evaluation stream).
+    #[arg(long, default_value_t = 10)]
+    maps: u64,
+    /// Seed of the evaluation stream.
+    #[arg(long, default_value_t = 11)]
+    seed: u64,
+    /// Wall-clock limit of each planner run, seconds.
+    #[arg(long, default_value_t = 300.0)]
+    time_limit: f64,
+    /// Test-time rollouts of the learned methods.
+    #[arg(long, default_value_t = 8)]
+    rollouts: usize,
+    /// Probability of a random action per agent and step in the rollouts after the first.
+    #[arg(long, default_value_t = 0.05)]
+    random_prob: f64,
+    /// Methods, comma-separated (see `phalanx bench --help`; default: every method that
+    /// exists, the hierarchy only when a meta policy is found).
+    #[arg(long, value_delimiter = ',')]
+    methods: Option<Vec<String>>,
+    /// Largest map side joint-state A* runs on.
+    #[arg(long, default_value_t = 32)]
+    jsa_max_side: u32,
+    /// A few small instances: 2 per row, every row on 20² maps, 2 rollouts, 10 s limits.
+    #[arg(long)]
+    quick: bool,
+    /// Output directory.
+    #[arg(long, default_value = "bench")]
+    out: PathBuf,
+    /// Continue the runs of `--out` (same settings) instead of refusing to overwrite them.
+    #[arg(long)]
+    resume: bool,
+    /// The meta policy's directory (default: the shipped models/meta, if any).
+    #[arg(long, value_name = "DIR")]
+    meta: Option<PathBuf>,
+}
+
+/// Runs `phalanx bench`.
+pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
+    let (name, args) = match cmd {
+        BenchCmd::Table2(args) => ("table2", args),
+        BenchCmd::Pareto(args) => ("pareto", args),
+    };
+    anyhow::ensure!(
+        args.time_limit.is_finite() && args.time_limit > 0.0,
+        "--time-limit {} must be a positive number of seconds",
+        args.time_limit
+    );
+    anyhow::ensure!(args.rollouts >= 1, "--rollouts must be at least 1");
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&args.random_prob),
+        "--random-prob {} must be in [0, 1]",
+        args.random_prob
+    );
+    anyhow::ensure!(args.maps >= 1, "--maps must be at least 1");
+    // Each run on one thread: its time is its own.
+    rayon::ThreadPoolBuilder::new().num_threads(1).build_global().ok();
+
+    let quick = args.quick;
+    let mut cases = Case::table2(quick);
+    if name == "pareto" {
+        cases.retain(|c| c.paper.is_some_and(|p| p.side == 20));
+    }
+    let plan = Plan {
+        maps: if quick { args.maps.min(2) } else { args.maps },
+        seed: args.seed,
+        settings: Settings {
+            time_limit_s: if quick { args.time_limit.min(10.0) } else { args.time_limit },
+            rollouts: Rollouts {
+                count: if quick { args.rollouts.min(2) } else { args.rollouts },
+                epsilon: args.random_prob,
+                seed: args.seed,
+            },
+        },
+    };
+    let meta_file = match &args.meta {
+        Some(dir) => Some(models::weights_file(Some(dir), "meta")?),
+        None => models::weights_file(None, "meta").ok(),
+    };
+    let names = match &args.methods {
+        Some(list) => list.clone(),
+        None => default_methods(name, meta_file.is_some()),
+    };
+    let mut methods = names
+        .iter()
+        .map(|spec| method(spec, &args, meta_file.as_deref()))
+        .collect::<anyhow::Result<Vec<Method>>>()?;
+
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let settings = serde_json::json!({
+        "benchmark": name,
+        "maps": plan.maps,
+        "seed": plan.seed,
+        "time_limit_s": plan.settings.time_limit_s,
+        "rollouts": plan.settings.rollouts,
+        "jsa_max_side": args.jsa_max_side,
+        "quick": quick,
+        "meta": meta_file.as_ref().map(|f| f.display().to_string()),
+    });
+    let settings_path = args.out.join("bench.json");
+    let records_path = args.out.join("runs.jsonl");
+    let records = if args.resume {
+        let saved = phalanx_io::read_text(&settings_path)?;
+        let saved: serde_json::Value = serde_json::from_str(&saved)
+            .with_context(|| format!("{}: not benchmark settings", settings_path.display()))?;
+        anyhow::ensure!(
+            saved == settings,
+            "{} holds other settings ({saved}); resume with the same flags or use another --out",
+            settings_path.display()
+        );
+        runs::read_records(&records_path)?
+    } else {
+        anyhow::ensure!(
+            !records_path.exists(),
+            "{} exists: pass --resume to continue it, or another --out",
+            records_path.display()
+        );
+        Vec::new()
+    };
+    phalanx_io::write_text(&settings_path, &format!("{settings:#}\n"))?;
+    let done = runs::done(&records);
+    let todo = bench::pending(&cases, &methods, &plan, &done).len();
+    let mut appender = Appender::create(&records_path, &records)?;
+    let mut all = records;
+
+    let bar = ProgressBar::new(todo as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} runs, {per_sec}, eta {eta} {msg}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    bar.enable_steady_tick(Duration::from_millis(500));
+    bench::run(&cases, &mut methods, &plan, &done, &mut |record| {
+        appender.push(&record)?;
+        bar.set_message(format!("{} {}", record.case, record.method));
+        bar.inc(1);
+        all.push(record);
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+
+    let cells = report::cells(&all, &cases, &names);
+    write_outputs(name, &args.out, &cases, &names, &all, &cells)?;
+    let invalid = all.iter().filter(|r| r.run.outcome == phalanx_plan::planner::Outcome::Invalid);
+    let invalid = invalid.count();
+    util::print(&report::markdown(&cases, &cells))?;
+    if invalid > 0 {
+        util::warn(&format!("{invalid} runs returned an invalid plan (a planner bug)"));
+        return Ok(ExitCode::from(1));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The methods run when `--methods` is not given.
+fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
+    let mut names: Vec<String> = if benchmark == "pareto" {
+        ["pathfinding", "leader", "leader:1.5", "leader:0.7", "leader:0.3"]
+            .into_iter()
+            .chain(["jsa:0", "jsa:0.1", "jsa:0.3", "jsa:1", "jsa:3"])
+            .map(str::to_owned)
+            .collect()
+    } else {
+        ["cbs", "ecbs", "swarm", "jsa", "pathfinding", "leader"].map(str::to_owned).to_vec()
+    };
+    if meta {
+        if benchmark == "pareto" {
+            names.extend(["hrl:0", "hrl:1", "hrl:2", "hrl:3"].map(str::to_owned));
+        } else {
+            names.push("hrl".to_owned());
+        }
+    } else {
+        util::warn("no meta policy found (models/meta or --meta): the hierarchy is left out");
+    }
+    names
+}
+
+/// The method named `spec` (`NAME[:PARAM]`).
+fn method(spec: &str, args: &BenchArgs, meta_file: Option<&Path>) -> anyhow::Result<Method> {
+    let (name, param) = match spec.split_once(':') {
+        Some((name, param)) => (name, Some(param)),
+        None => (spec, None),
+    };
+    let number = || -> anyhow::Result<Option<f64>> {
+        param
+            .map(|p| {
+                p.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite() && *v >= 0.0)
+                    .with_context(|| format!("method {spec}: {p} is not a non-negative number"))
+            })
+            .transpose()
+    };
+    let planner = |choice| Ok(Method::new(spec, Solver::Planner(choice)));
+    let no_param = || {
+        anyhow::ensure!(param.is_none(), "method {spec}: {name} takes no parameter");
+        Ok(())
+    };
+    match name {
+        "cbs" => no_param().and_then(|()| planner(PlannerChoice::Cbs(cbs::CbsConfig::default()))),
+        "astar" => no_param()
+            .and_then(|()| planner(PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()))),
+        "swarm" => {
+            no_param().and_then(|()| planner(PlannerChoice::Swarm(swarm::SwarmConfig::default())))
+        }
+        "ecbs" => planner(PlannerChoice::Ecbs(ecbs::EcbsConfig { w: number()?.unwrap_or(1.2) })),
+        "jsa" => {
+            let objective = number()?.map_or(Objective::FormationFirst, Objective::Weighted);
+            let mut m = Method::new(
+                spec,
+                Solver::Planner(PlannerChoice::JointAStar(JointAStarConfig::with_objective(
+                    objective,
+                ))),
+            );
+            m.max_side = Some(args.jsa_max_side);
+            Ok(m)
+        }
+        "pathfinding" => {
+            no_param()?;
+            let (policy, _) = meta::load(None, "pathfinding")?;
+            Ok(Method::new(spec, Solver::PathFinding(Box::new(policy))))
+        }
+        "leader" => {
+            let rule = phalanx_rl::ScriptedMeta::new(number()?, 8);
+            let low = meta::low_level_of(None, None)?;
+            Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
+        }
+        "hrl" => {
+            let file = meta_file.context("method hrl: no meta policy (models/meta or --meta)")?;
+            let (policy, header) =
+                phalanx_rl::policy_file::load_policy_any(file, &burn::tensor::Device::flex())
+                    .with_context(|| format!("loading the meta policy {}", file.display()))?;
+            let hierarchy =
+                meta::hierarchy(policy, &header, file, None, None, number()?.unwrap_or(1.0))?;
+            Ok(Method::new(spec, Solver::Hierarchy(Box::new(hierarchy))))
+        }
+        other => anyhow::bail!(
+            "unknown method {other} (cbs, ecbs, swarm, astar, jsa, pathfinding, leader, hrl)"
+        ),
+    }
+}
+
+/// `runs.csv`, `cells.json`, `<name>.md` and `<name>.svg` of the records.
+fn write_outputs(
+    name: &str,
+    out: &Path,
+    cases: &[Case],
+    methods: &[String],
+    records: &[runs::RunRecord],
+    cells: &[Cell],
+) -> anyhow::Result<()> {
+    phalanx_io::write_text(&out.join("runs.csv"), &runs::csv(records))?;
+    let json = serde_json::to_string_pretty(cells)?;
+    phalanx_io::write_text(&out.join("cells.json"), &format!("{json}\n"))?;
+    phalanx_io::write_text(&out.join(format!("{name}.md")), &report::markdown(cases, cells))?;
+    let svg = out.join(format!("{name}.svg"));
+    if name == "pareto" {
+        report::plot_pareto(cases, methods, cells, &svg)?;
+    } else {
+        report::plot_table2(cases, methods, cells, &svg)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,179 @@
+//! The records of a benchmark: one per (case, instance, method), appended to `runs.jsonl` as
+//! each run finishes (so a killed benchmark loses at most the run it was in), read back to
+//! resume, and written out as `runs.csv`.
+
+use std::collections::BTreeSet;
+use std::fs::{File, OpenOptions};
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use phalanx_plan::SolveSummary;
+use serde::{Deserialize, Serialize};
+
+use crate::BenchError;
+
+/// One run of one method on one instance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunRecord {
+    /// The case's label.
+    pub case: String,
+    /// Map side.
+    pub side: u32,
+    /// Agents.
+    pub agents: usize,
+    /// Obstacle density.
+    pub density: f64,
+    /// The instance's index in the case's evaluation stream.
+    pub index: u64,
+    /// The generator seed of the instance (`phalanx gen --seed` makes it again).
+    pub map_seed: u64,
+    /// The method's name.
+    pub method: String,
+    /// The outcome, metrics, runtime and nodes or decisions.
+    pub run: SolveSummary,
+}
+
+/// What identifies a run: (case, instance index, method).
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct RunKey(pub String, pub u64, pub String);
+
+impl RunRecord {
+    /// The run's key.
+    pub fn key(&self) -> RunKey {
+        RunKey(self.case.clone(), self.index, self.method.clone())
+    }
+
+    /// Whether the run came back with a valid plan that reaches the goals.
+    pub fn solved(&self) -> bool {
+        self.run.metrics.as_ref().is_some_and(|m| m.success)
+            && self.run.outcome == phalanx_plan::planner::Outcome::Solved
+    }
+}
+
+/// Reads the records of `path` (none when it does not exist). A last line cut short (the
+/// benchmark was killed while writing it) is dropped; any other line that is not a record is
+/// an error naming the file and line.
+///
+/// # Errors
+/// If the file cannot be read or a line is not a record.
+pub fn read_records(path: &Path) -> Result<Vec<RunRecord>, BenchError> {
+    if !path.exists() {
+        return Ok(Vec::new());
+    }
+    let text = phalanx_io::read_text(path)?;
+    let lines: Vec<&str> = text.lines().collect();
+    let cut_short = !text.ends_with('\n');
+    let mut records = Vec::with_capacity(lines.len());
+    for (i, line) in lines.iter().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str(line) {
+            Ok(record) => records.push(record),
+            Err(_) if cut_short && i + 1 == lines.len() => {}
+            Err(err) => {
+                return Err(BenchError::Record {
+                    path: path.display().to_string(),
+                    line: i + 1,
+                    message: err.to_string(),
+                });
+            }
+        }
+    }
+    Ok(records)
+}
+
+/// The keys of `records`.
+pub fn done(records: &[RunRecord]) -> BTreeSet<RunKey> {
+    records.iter().map(RunRecord::key).collect()
+}
+
+/// Appends records to `runs.jsonl`, one line each, flushed as written.
+#[derive(Debug)]
+pub struct Appender {
+    path: PathBuf,
+    file: File,
+}
+
+impl Appender {
+    /// Starts `path` afresh with `records` (written atomically: the records read back on
+    /// resume, without a line cut short), then appends.
+    ///
+    /// # Errors
+    /// If the file cannot be written.
+    pub fn create(path: &Path, records: &[RunRecord]) -> Result<Appender, BenchError> {
+        let mut text = String::new();
+        for record in records {
+            text.push_str(&serde_json::to_string(record).expect("records serialise"));
+            text.push('\n');
+        }
+        phalanx_io::write_text(path, &text)?;
+        let file = OpenOptions::new()
+            .append(true)
+            .open(path)
+            .map_err(|err| phalanx_io::Error::io(path, err))?;
+        Ok(Appender { path: path.to_path_buf(), file })
+    }
+
+    /// Appends one record.
+    ///
+    /// # Errors
+    /// If the file cannot be written.
+    pub fn push(&mut self, record: &RunRecord) -> Result<(), BenchError> {
+        let mut line = serde_json::to_string(record).expect("records serialise");
+        line.push('\n');
+        self.file
+            .write_all(line.as_bytes())
+            .and_then(|()| self.file.flush())
+            .map_err(|err| phalanx_io::Error::io(&self.path, err).into())
+    }
+}
+
+/// The columns of `runs.csv`.
+pub const CSV_HEADER: &str = "case,side,agents,density,index,map_seed,method,outcome,success,\
+makespan,sum_of_costs,formation_loss,formation_loss_mean,runtime_s,high_level_expanded,\
+low_level_expanded,decisions";
+
+/// `records` as CSV (header [`CSV_HEADER`]; empty fields where a run has no plan).
+pub fn csv(records: &[RunRecord]) -> String {
+    let mut out = String::from(CSV_HEADER);
+    out.push('\n');
+    for r in records {
+        let s = &r.run;
+        let outcome = serde_json::to_value(s.outcome).expect("outcomes serialise");
+        let m = s.metrics.as_ref();
+        let field = |v: Option<String>| v.unwrap_or_default();
+        let cells = [
+            quote(&r.case),
+            r.side.to_string(),
+            r.agents.to_string(),
+            r.density.to_string(),
+            r.index.to_string(),
+            r.map_seed.to_string(),
+            quote(&r.method),
+            outcome.as_str().unwrap_or_default().to_owned(),
+            r.solved().to_string(),
+            field(m.map(|m| m.makespan.to_string())),
+            field(m.map(|m| m.sum_of_costs.to_string())),
+            field(m.map(|m| m.formation_loss.to_string())),
+            field(m.map(|m| m.formation_loss_mean.to_string())),
+            s.runtime_s.to_string(),
+            s.high_level_expanded.to_string(),
+            s.low_level_expanded.to_string(),
+            field(s.decisions.map(|d| d.to_string())),
+        ];
+        out.push_str(&cells.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// A CSV field, quoted when it holds a comma, a quote or a space.
+fn quote(text: &str) -> String {
+    if text.contains([',', '"', ' ']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_owned()
+    }
+}

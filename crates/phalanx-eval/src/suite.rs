@@ -1,0 +1,120 @@
+//! The cases of a benchmark and their instances.
+//!
+//! A case is a kind of instance (map side, team size, obstacle density); its instances are
+//! the first ones of the evaluation stream (`phalanx_env::EvalMaps`, SPEC §2 and §5: freshly
+//! generated, never the training pool), so every method sees the same instances and a
+//! seed names them all.
+
+use phalanx_core::Instance;
+use phalanx_env::{EvalConfig, EvalMaps};
+
+use crate::BenchError;
+
+/// One row of the paper's Table II (SPEC §8) with the paper's figures for its method and
+/// for CBS.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PaperRow {
+    /// Map side.
+    pub side: u32,
+    /// Agents.
+    pub agents: usize,
+    /// Obstacle density.
+    pub density: f64,
+    /// The paper's method: makespan.
+    pub makespan: f64,
+    /// The paper's method: Table II formation loss.
+    pub formation_loss: f64,
+    /// The paper's method: success rate.
+    pub success: f64,
+    /// The paper's method: runtime in seconds (with a GPU).
+    pub runtime_s: f64,
+    /// CBS's runtime as the paper prints it (`>300`: timed out; `—`: not run).
+    pub cbs_runtime: &'static str,
+}
+
+/// The seven rows of Table II (SPEC §8).
+pub const PAPER_ROWS: [PaperRow; 7] = [
+    row(20, 3, 0.15, 41.3, 0.5, 1.0, 0.27, "0.002"),
+    row(20, 3, 0.05, 34.2, 0.01, 1.0, 0.24, "0.0002"),
+    row(20, 5, 0.05, 30.0, 0.0, 0.8, 0.39, "0.0004"),
+    row(512, 3, 0.15, 1131.2, 0.37, 1.0, 8.47, "171.58"),
+    row(512, 4, 0.05, 1713.6, 1.07, 1.0, 16.3, "58.9"),
+    row(1024, 3, 0.05, 2378.7, 0.17, 1.0, 18.1, ">300"),
+    row(1024, 3, 0.15, 2215.5, 0.38, 1.0, 17.2, "—"),
+];
+
+#[allow(clippy::too_many_arguments, reason = "one table row")]
+const fn row(
+    side: u32,
+    agents: usize,
+    density: f64,
+    makespan: f64,
+    formation_loss: f64,
+    success: f64,
+    runtime_s: f64,
+    cbs_runtime: &'static str,
+) -> PaperRow {
+    PaperRow { side, agents, density, makespan, formation_loss, success, runtime_s, cbs_runtime }
+}
+
+/// The side of every case in a quick benchmark: `--quick` runs the rows on small maps.
+pub const QUICK_SIDE: u32 = 20;
+
+/// A kind of instance and the paper's figures for it, if it is one of Table II's rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Case {
+    /// The label in tables and records (`20x3@0.15`).
+    pub label: String,
+    /// Map side.
+    pub side: u32,
+    /// Agents.
+    pub agents: usize,
+    /// Obstacle density.
+    pub density: f64,
+    /// The paper's row (Table II cases only).
+    pub paper: Option<PaperRow>,
+}
+
+impl Case {
+    /// A case of `side`² maps with `agents` agents at `density`.
+    pub fn new(side: u32, agents: usize, density: f64, paper: Option<PaperRow>) -> Case {
+        Case { label: format!("{side}x{agents}@{density}"), side, agents, density, paper }
+    }
+
+    /// The rows of Table II; `quick`: on [`QUICK_SIDE`]² maps (labels keep the row and say
+    /// the side, `512x3@0.15 (20²)`).
+    pub fn table2(quick: bool) -> Vec<Case> {
+        PAPER_ROWS
+            .iter()
+            .map(|p| {
+                let mut case = Case::new(p.side, p.agents, p.density, Some(*p));
+                if quick && p.side > QUICK_SIDE {
+                    case.label = format!("{} ({QUICK_SIDE}²)", case.label);
+                    case.side = QUICK_SIDE;
+                }
+                case
+            })
+            .collect()
+    }
+
+    /// Instance `index` of the case's evaluation stream from `seed` (field of view 9) and
+    /// its map seed.
+    ///
+    /// # Errors
+    /// If the generator cannot place the team.
+    pub fn instance(&self, seed: u64, index: u64) -> Result<(Instance, u64), BenchError> {
+        let maps = EvalMaps::new(EvalConfig {
+            size: self.side,
+            density: self.density,
+            n_agents: self.agents,
+            fov: 9,
+            seed,
+        });
+        let instance = maps.instance(index).map_err(|source| BenchError::Instance {
+            case: self.label.clone(),
+            index,
+            source,
+        })?;
+        Ok((instance, maps.seed(index)))
+    }
+}
