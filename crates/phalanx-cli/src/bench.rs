@@ -26,7 +26,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_eval::bench::{self, Plan};
 use phalanx_eval::report::{self, Cell};
 use phalanx_eval::runs::{self, Appender};
-use phalanx_eval::{Case, Method, Settings, Solver};
+use phalanx_eval::{BenchError, Case, Method, Settings, Solver};
 use phalanx_plan::PlannerChoice;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::{astar, cbs, ecbs, swarm};
@@ -54,13 +54,13 @@ pub(crate) struct BenchArgs {
     #[arg(long, default_value_t = 11)]
     seed: u64,
     /// Wall-clock limit of each planner run, seconds.
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(long, default_value_t = 300.0, value_parser = util::positive)]
     time_limit: f64,
     /// Test-time rollouts of the learned methods.
     #[arg(long, default_value_t = 8)]
     rollouts: usize,
     /// Probability of a random action per agent and step in the rollouts after the first.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = util::fraction)]
     random_prob: f64,
     /// Methods, comma-separated (see `phalanx bench --help`; default: every method that
     /// exists, the hierarchy only when a meta policy is found).
@@ -89,17 +89,7 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         BenchCmd::Table2(args) => ("table2", args),
         BenchCmd::Pareto(args) => ("pareto", args),
     };
-    anyhow::ensure!(
-        args.time_limit.is_finite() && args.time_limit > 0.0,
-        "--time-limit {} must be a positive number of seconds",
-        args.time_limit
-    );
     anyhow::ensure!(args.rollouts >= 1, "--rollouts must be at least 1");
-    anyhow::ensure!(
-        (0.0..=1.0).contains(&args.random_prob),
-        "--random-prob {} must be in [0, 1]",
-        args.random_prob
-    );
     anyhow::ensure!(args.maps >= 1, "--maps must be at least 1");
     // Each run on one thread: its time is its own.
     rayon::ThreadPoolBuilder::new().num_threads(1).build_global().ok();
@@ -134,8 +124,7 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         .map(|spec| method(spec, &args, meta_file.as_deref()))
         .collect::<anyhow::Result<Vec<Method>>>()?;
 
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    util::written(std::fs::create_dir_all(&args.out), &args.out)?;
     let settings = serde_json::json!({
         "benchmark": name,
         "maps": plan.maps,
@@ -166,10 +155,13 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         );
         Vec::new()
     };
-    phalanx_io::write_text(&settings_path, &format!("{settings:#}\n"))?;
+    util::written(
+        phalanx_io::write_text(&settings_path, &format!("{settings:#}\n")),
+        &settings_path,
+    )?;
     let done = runs::done(&records);
     let todo = bench::pending(&cases, &methods, &plan, &done).len();
-    let mut appender = Appender::create(&records_path, &records)?;
+    let mut appender = util::written(Appender::create(&records_path, &records), &records_path)?;
     let mut all = records;
 
     let bar = ProgressBar::new(todo as u64);
@@ -181,17 +173,22 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         .progress_chars("=> "),
     );
     bar.enable_steady_tick(Duration::from_millis(500));
-    bench::run(&cases, &mut methods, &plan, &done, &mut |record| {
+    let ran = bench::run(&cases, &mut methods, &plan, &done, &mut |record| {
         appender.push(&record)?;
         bar.set_message(format!("{} {}", record.case, record.method));
         bar.inc(1);
         all.push(record);
         Ok(())
-    })?;
+    });
+    match ran {
+        // Only the records file is written during the runs.
+        Err(err @ BenchError::Io(_)) => util::written(Err(err), &records_path)?,
+        other => other?,
+    }
     bar.finish_and_clear();
 
     let cells = report::cells(&all, &cases, &names);
-    write_outputs(name, &args.out, &cases, &names, &all, &cells)?;
+    util::written(write_outputs(name, &args.out, &cases, &names, &all, &cells), &args.out)?;
     let invalid = all.iter().filter(|r| r.run.outcome == phalanx_plan::planner::Outcome::Invalid);
     let invalid = invalid.count();
     util::print(&report::markdown(&cases, &cells))?;

@@ -82,7 +82,7 @@ pub(crate) struct EvalCmd {
     #[arg(long, default_value_t = 32)]
     size: u32,
     /// Obstacle density.
-    #[arg(long, default_value_t = 0.15)]
+    #[arg(long, default_value_t = 0.15, value_parser = util::fraction)]
     density: f64,
     /// Agents per episode.
     #[arg(long, default_value_t = 3)]
@@ -98,11 +98,11 @@ pub(crate) struct EvalCmd {
     #[arg(long, default_value_t = 1)]
     rollouts: usize,
     /// Probability of a random allowed action per agent and step in the extra rollouts.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = util::fraction)]
     random_prob: f64,
     /// hrl: the multiple of the base formation weight w_f a weight-conditioned meta policy
     /// runs at.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
     multiple: f64,
     #[command(flatten)]
     leader: meta::LeaderArgs,
@@ -164,6 +164,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         Task::PathFinding | Task::Meta => 3 * cmd.size,
     });
     anyhow::ensure!(max_steps > 0, "--max-steps must be positive");
+    anyhow::ensure!(cmd.maps > 0, "--maps 0: there is nothing to evaluate");
     let env = EnvConfig { fov, task, step_limit: Some(max_steps), ..EnvConfig::default() };
     let instances = instances(&cmd, task, fov)?;
 
@@ -177,11 +178,6 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     );
     let started = Instant::now();
     anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
-    anyhow::ensure!(
-        (0.0..=1.0).contains(&cmd.random_prob),
-        "--random-prob {} must be in [0, 1]",
-        cmd.random_prob
-    );
     let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
     let mut progress = |done: usize| bar.set_position(done as u64);
     let episodes = if scripted {
@@ -192,11 +188,6 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         let mut hierarchy = Hierarchy::scripted(rule, low);
         evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
     } else if cmd.policy == PolicyName::Hrl {
-        anyhow::ensure!(
-            cmd.multiple.is_finite() && cmd.multiple >= 0.0,
-            "--multiple {} must be a non-negative number",
-            cmd.multiple
-        );
         let mut hierarchy = meta::hierarchy(
             policy,
             &header,

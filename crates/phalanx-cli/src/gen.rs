@@ -14,7 +14,7 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 32)]
     size: u32,
     /// Fraction of blocked cells (0 to 0.4).
-    #[arg(long, default_value_t = 0.15)]
+    #[arg(long, default_value_t = 0.15, value_parser = crate::util::fraction)]
     density: f64,
     /// Number of agents.
     #[arg(long, default_value_t = 3)]
@@ -41,7 +41,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
         fov: args.fov,
     };
     let instance = phalanx_gen::generate(&config).context("generating the instance")?;
-    phalanx_io::write_instance(&args.output, &instance).context("writing the instance")?;
+    crate::util::written(phalanx_io::write_instance(&args.output, &instance), &args.output)?;
     let grid = instance.grid();
     crate::util::print(&format!(
         "wrote {} ({}x{}, density {:.3}, {} agents, seed {})\n",

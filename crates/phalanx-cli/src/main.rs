@@ -4,8 +4,8 @@
 //! Each subcommand lives in its own module with an `Args` struct (clap derive) and a
 //! `run(Args) -> anyhow::Result<ExitCode>`; this file only holds the [`Command`] enum and
 //! the dispatch. To add one: write `src/<name>.rs`, add a variant and a match arm.
-//! Exit codes: 0 success, 1 an invalid plan (`validate`), 2 bad input (unreadable or
-//! malformed files, bad flags); see [`util`].
+//! Exit codes: 0 success, 1 an invalid plan (`validate`) or no plan, 2 bad input (unreadable
+//! or malformed files, bad flags), 3 an output that cannot be written; see [`util`].
 
 mod bench;
 mod eval;
@@ -87,7 +87,7 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(err) => {
             let _ = writeln!(std::io::stderr(), "error: {err:#}");
-            ExitCode::from(util::EXIT_BAD_INPUT)
+            ExitCode::from(util::exit_code(&err))
         }
     }
 }

@@ -93,7 +93,7 @@ pub(crate) fn low_level(
 pub(crate) struct LeaderArgs {
     /// leader: the formation loss L_f above which the team closes up (every agent runs
     /// formation) instead of moving on (default: never).
-    #[arg(long, value_name = "L_F")]
+    #[arg(long, value_name = "L_F", value_parser = crate::util::non_negative)]
     wait_above: Option<f64>,
     /// leader: the longest run of closing-up steps before the leader moves on for a step.
     #[arg(long, default_value_t = 8)]
@@ -104,13 +104,10 @@ impl LeaderArgs {
     /// The rule, checked; `scripted` says whether the command runs it (its flags are
     /// refused otherwise).
     pub(crate) fn rule(&self, scripted: bool) -> anyhow::Result<ScriptedMeta> {
-        if let Some(limit) = self.wait_above {
-            anyhow::ensure!(scripted, "--wait-above is a flag of the leader rule only");
-            anyhow::ensure!(
-                limit.is_finite() && limit >= 0.0,
-                "--wait-above {limit} must be a non-negative number"
-            );
-        }
+        anyhow::ensure!(
+            scripted || self.wait_above.is_none(),
+            "--wait-above is a flag of the leader rule only"
+        );
         Ok(ScriptedMeta::new(self.wait_above, self.patience))
     }
 }

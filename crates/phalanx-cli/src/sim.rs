@@ -23,7 +23,7 @@ pub(crate) struct SimCmd {
     #[arg(long, default_value_t = 32)]
     size: u32,
     /// Obstacle density of generated maps.
-    #[arg(long, default_value_t = 0.15)]
+    #[arg(long, default_value_t = 0.15, value_parser = crate::util::fraction)]
     density: f64,
     /// Agents: of generated instances (default 3), or the first N of the instance file
     /// (default all).

@@ -64,24 +64,24 @@ pub(crate) struct SolveCmd {
     #[arg(long, value_enum, default_value = "cbs")]
     planner: PlannerName,
     /// The weight: jsa's formation-loss weight `w`, ecbs's suboptimality bound.
-    #[arg(long)]
+    #[arg(long, value_parser = util::non_negative)]
     weight: Option<f64>,
     /// Wall-clock limit in seconds (classical planners).
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(long, default_value_t = 300.0, value_parser = util::positive)]
     time_limit: f64,
     /// Learned policies: rollouts (the first greedy; the best one counts).
     #[arg(long, default_value_t = 8)]
     rollouts: usize,
     /// Learned policies: probability of a random allowed action per agent and step in the
     /// rollouts after the first.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = util::fraction)]
     random_prob: f64,
     /// Learned policies: the weights directory (hrl: the meta policy's; default: the
     /// shipped models/meta or models/pathfinding).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
     /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
     multiple: f64,
     #[command(flatten)]
     leader: meta::LeaderArgs,
@@ -101,14 +101,6 @@ pub(crate) struct SolveCmd {
 }
 
 pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
-    if !(cmd.time_limit.is_finite() && cmd.time_limit > 0.0) {
-        anyhow::bail!("--time-limit must be a positive number of seconds, not {}", cmd.time_limit);
-    }
-    if let Some(w) = cmd.weight
-        && !(w.is_finite() && w >= 0.0)
-    {
-        anyhow::bail!("--weight must be a non-negative number, not {w}");
-    }
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let instance = &named.instance;
     if matches!(cmd.planner, PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader) {
@@ -136,8 +128,7 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
             low_level_expanded: report.stats.low_level_expanded,
             ..PlanStats::of(plan, report.stats.runtime_s)
         };
-        phalanx_io::write_plan_named(path, plan, &named.names, &stats)
-            .with_context(|| format!("writing plan {}", path.display()))?;
+        util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
     }
     report_summary(&summary, cmd.json)
 }
@@ -155,16 +146,6 @@ fn report_summary(summary: &SolveSummary, json: bool) -> anyhow::Result<ExitCode
 /// Solves with a learned policy (see the module docs).
 fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
-    anyhow::ensure!(
-        (0.0..=1.0).contains(&cmd.random_prob),
-        "--random-prob {} must be in [0, 1]",
-        cmd.random_prob
-    );
-    anyhow::ensure!(
-        cmd.multiple.is_finite() && cmd.multiple >= 0.0,
-        "--multiple {} must be a non-negative number",
-        cmd.multiple
-    );
     let instance = &named.instance;
     let hrl = cmd.planner == PlannerName::Hrl;
     let scripted = cmd.planner == PlannerName::Leader;
@@ -202,8 +183,7 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let solved = summary.outcome == Outcome::Solved;
     if let (Some(path), Some(plan), true) = (&cmd.output, &plan, solved || cmd.partial) {
         let stats = PlanStats::of(plan, summary.runtime_s);
-        phalanx_io::write_plan_named(path, plan, &named.names, &stats)
-            .with_context(|| format!("writing plan {}", path.display()))?;
+        util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
     }
     report_summary(&summary, cmd.json)
 }

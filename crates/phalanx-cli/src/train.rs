@@ -86,10 +86,10 @@ pub(crate) struct TrainCmd {
     #[arg(long, value_name = "N")]
     steps: Option<u64>,
     /// Meta: train one meta policy at M times the base weight w_f (not weight-conditioned).
-    #[arg(long, value_name = "M", conflicts_with = "formation_weight")]
+    #[arg(long, value_name = "M", conflicts_with = "formation_weight", value_parser = util::non_negative)]
     weight_multiple: Option<f64>,
     /// Meta: train one meta policy with the formation weight W for every team size.
-    #[arg(long, value_name = "W")]
+    #[arg(long, value_name = "W", value_parser = util::non_negative)]
     formation_weight: Option<f64>,
 }
 
@@ -110,8 +110,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         [("--weight-multiple", cmd.weight_multiple), ("--formation-weight", cmd.formation_weight)]
     {
         if let Some(v) = value {
-            anyhow::ensure!(task == TrainTask::Meta, "{flag} is for `phalanx train meta`");
-            anyhow::ensure!(v.is_finite() && v >= 0.0, "{flag} {v} must be a non-negative number");
+            anyhow::ensure!(task == TrainTask::Meta, "{flag} {v} is for `phalanx train meta`");
         }
     }
     if let Some(multiple) = cmd.weight_multiple {
@@ -151,7 +150,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         ));
         config.agent_counts = learner.agent_counts().to_vec();
     }
-    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    util::written(fs::create_dir_all(dir), dir)?;
     let building = || format!("building the {} environment", task.name());
     if task == TrainTask::Meta {
         let (low, meta) = meta::low_level(&config, &learner)?;
@@ -171,7 +170,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
 /// Writes the run's settings to `DIR/config.json`.
 fn write_config(path: &Path, config: &TrainConfig) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(config).expect("the config serialises");
-    fs::write(path, json + "\n").with_context(|| format!("writing {}", path.display()))
+    util::written(phalanx_io::write_text(path, &(json + "\n")), path)
 }
 
 /// On resume, restores the collection state of the checkpoint (warning when it has none).
@@ -252,21 +251,21 @@ fn train<E: MarlEnv + Send>(
         let todo = (config.steps - learner.counters().env_steps).min(chunk);
         learner.train(&mut collector, todo, &mut sink);
         if let Some(err) = sink.err.take() {
-            return Err(err).with_context(|| format!("writing {}", metrics_path.display()));
+            return util::written(Err(err), &metrics_path);
         }
         let updates = learner.counters().updates;
         if updates / every > last_saved {
             last_saved = updates / every;
-            sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
-            learner.save_with_collection(&checkpoint, &collector)?;
-            learner.save_policy(&dir.join(POLICY))?;
+            util::written(sink.out.flush(), &metrics_path)?;
+            util::written(learner.save_with_collection(&checkpoint, &collector), &checkpoint)?;
+            util::written(learner.save_policy(&dir.join(POLICY)), &dir.join(POLICY))?;
             plot_curves(dir);
         }
     }
     bar.finish_and_clear();
-    sink.out.flush().with_context(|| format!("writing {}", metrics_path.display()))?;
-    learner.save_with_collection(&checkpoint, &collector)?;
-    learner.save_policy(&dir.join(POLICY))?;
+    util::written(sink.out.flush(), &metrics_path)?;
+    util::written(learner.save_with_collection(&checkpoint, &collector), &checkpoint)?;
+    util::written(learner.save_policy(&dir.join(POLICY)), &dir.join(POLICY))?;
     plot_curves(dir);
 
     let counters = learner.counters();

@@ -11,6 +11,51 @@ use phalanx_io::NamedInstance;
 pub(crate) const EXIT_INVALID: u8 = 1;
 /// Bad input: unreadable or malformed files, bad flags.
 pub(crate) const EXIT_BAD_INPUT: u8 = 2;
+/// A failure while working: an output (plan, instance, checkpoint, metrics, report) that
+/// cannot be written.
+pub(crate) const EXIT_RUNTIME: u8 = 3;
+
+/// Marks an error as a failed write of an output (exit [`EXIT_RUNTIME`], not bad input).
+#[derive(Debug, thiserror::Error)]
+#[error("writing {0}")]
+pub(crate) struct WriteFailed(pub(crate) String);
+
+/// Marks the error of writing `what` as a [`WriteFailed`].
+pub(crate) fn written<T, E>(result: Result<T, E>, what: &Path) -> anyhow::Result<T>
+where
+    E: Into<anyhow::Error>,
+{
+    result.map_err(|err| err.into().context(WriteFailed(what.display().to_string())))
+}
+
+/// The exit code of a failed command: [`EXIT_RUNTIME`] for a failed write, else
+/// [`EXIT_BAD_INPUT`].
+pub(crate) fn exit_code(err: &anyhow::Error) -> u8 {
+    if err.downcast_ref::<WriteFailed>().is_some() { EXIT_RUNTIME } else { EXIT_BAD_INPUT }
+}
+
+/// A flag value that is a finite number of at least 0.
+pub(crate) fn non_negative(text: &str) -> Result<f64, String> {
+    number(text).and_then(|v| if v >= 0.0 { Ok(v) } else { Err(format!("{v} is negative")) })
+}
+
+/// A flag value that is a finite number above 0.
+pub(crate) fn positive(text: &str) -> Result<f64, String> {
+    number(text).and_then(|v| if v > 0.0 { Ok(v) } else { Err(format!("{v} is not above 0")) })
+}
+
+/// A flag value that is a probability or a fraction: a number in `[0, 1]`.
+pub(crate) fn fraction(text: &str) -> Result<f64, String> {
+    number(text).and_then(|v| {
+        if (0.0..=1.0).contains(&v) { Ok(v) } else { Err(format!("{v} is not in [0, 1]")) }
+    })
+}
+
+/// A finite number.
+fn number(text: &str) -> Result<f64, String> {
+    let v: f64 = text.trim().parse().map_err(|_| format!("{text:?} is not a number"))?;
+    if v.is_finite() { Ok(v) } else { Err(format!("{text} is not a finite number")) }
+}
 
 /// Reads an instance, format by extension (`.yaml`/`.yml` or `.scen` with its map);
 /// `n_agents` takes the first entries of a scenario.

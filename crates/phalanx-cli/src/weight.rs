@@ -81,8 +81,7 @@ pub(crate) fn run(cmd: WeightCmd) -> anyhow::Result<ExitCode> {
     });
     if let Some(path) = &cmd.output {
         let text = serde_json::to_string_pretty(&value)? + "\n";
-        phalanx_io::write_text(path, &text)
-            .with_context(|| format!("writing {}", path.display()))?;
+        util::written(phalanx_io::write_text(path, &text), path)?;
     }
     if cmd.json {
         return util::print_json(&value).map(|()| ExitCode::SUCCESS);

@@ -49,10 +49,10 @@ pub enum ParseErrorKind {
         "map size {width}x{height} is out of range (1 to 65536 per side, fewer than 2^32 cells)"
     )]
     BadSize {
-        /// The width given.
-        width: u64,
+        /// The width given (as the file holds it, negative too).
+        width: i64,
         /// The height given.
-        height: u64,
+        height: i64,
     },
     /// The map ends before `height` rows.
     #[error("map has {found} rows, expected {expected}")]

@@ -47,17 +47,20 @@ pub fn read_text(path: &Path) -> Result<String, Error> {
 }
 
 /// Writes `text` to `path` atomically: into a temporary file beside it, then renamed over
-/// it. On error the temporary file is removed and an existing file is left as it was.
+/// it. On error the temporary file is removed and an existing file is left as it was. The
+/// file gets the usual permissions of a new file (the umask applies).
 pub fn write_text(path: &Path, text: &str) -> Result<(), Error> {
     let dir = match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".phalanx-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(|err| Error::io(path, err))?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".phalanx-").suffix(".tmp");
+    // The temporary file becomes the output: give it the permissions any new file gets
+    // (0666 less the umask), not the private 0600 of a temporary file.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut tmp = builder.tempfile_in(dir).map_err(|err| Error::io(path, err))?;
     tmp.write_all(text.as_bytes()).map_err(|err| Error::io(path, err))?;
     tmp.as_file().sync_all().map_err(|err| Error::io(path, err))?;
     tmp.persist(path).map_err(|err| Error::io(path, err.error))?;

@@ -108,6 +108,8 @@ impl MovingAiMap {
         let max = u64::from(Grid::MAX_SIDE);
         if !(1..=max).contains(&width) || !(1..=max).contains(&height) || width * height >= 1 << 32
         {
+            let clamp = |v: u64| i64::try_from(v).unwrap_or(i64::MAX);
+            let (width, height) = (clamp(width), clamp(height));
             return Err(ParseError::new(map_line, ParseErrorKind::BadSize { width, height }));
         }
         let (width, height) = (width as u32, height as u32);

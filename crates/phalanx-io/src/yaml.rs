@@ -189,7 +189,6 @@ impl YamlInstance {
         let max = i64::from(Grid::MAX_SIDE);
         if !(1..=max).contains(&width) || !(1..=max).contains(&height) || width * height >= 1 << 32
         {
-            let (width, height) = (width.max(0) as u64, height.max(0) as u64);
             return Err(ParseError::new(map_line, ParseErrorKind::BadSize { width, height }));
         }
         let (width, height) = (width as u32, height as u32);

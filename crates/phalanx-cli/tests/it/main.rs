@@ -152,6 +152,20 @@ fn bad_input_exits_2() {
     assert!(stderr.contains("map size 3 is out of range"), "{stderr}");
     check(&phalanx(d, &["gen", "-o", "x.txt"]), 2);
     assert!(!d.join("x.yaml").exists());
+    // An output that cannot be written is a failure while working, not bad input.
+    let (_, stderr) = check(&phalanx(d, &["gen", "-o", "no/such/dir/x.yaml"]), 3);
+    assert!(stderr.contains("writing no/such/dir/x.yaml"), "{stderr}");
+    // Non-finite and out-of-range numbers are refused, naming the flag.
+    for (flag, value) in [("--density", "NaN"), ("--density", "0.5e1"), ("--fov", "x")] {
+        let (_, stderr) = check(&phalanx(d, &["gen", flag, value, "-o", "y.yaml"]), 2);
+        assert!(stderr.contains(flag) && stderr.contains(value), "{stderr}");
+    }
+    let (_, stderr) = check(&phalanx(d, &["eval", "--policy", "pathfinding", "--maps", "0"]), 2);
+    assert!(stderr.contains("--maps 0"), "{stderr}");
+    for bad in ["--multiple=-1", "--random-prob=inf"] {
+        let (_, stderr) = check(&phalanx(d, &["eval", "--policy", "hrl", bad]), 2);
+        assert!(stderr.contains(bad.split('=').next().unwrap()), "{stderr}");
+    }
 }
 
 /// The metrics of a run: `(name, step)` of every line of `metrics.jsonl`.

@@ -170,6 +170,10 @@ fn bad_yaml_instances() {
         "x.yaml:2: map size 0x3 is out of range (1 to 65536 per side, fewer than 2^32 cells)",
     );
     check_yaml(
+        "map:\n  dimensions: [-4, 5]\nagents: []\n",
+        "x.yaml:2: map size -4x5 is out of range (1 to 65536 per side, fewer than 2^32 cells)",
+    );
+    check_yaml(
         "map:\n  dimensions: [x, 3]\nagents: []\n",
         "x.yaml:2: map.dimensions[0]: invalid type: string \"x\", expected i64",
     );

@@ -92,3 +92,17 @@ fn writes_are_atomic_and_leave_no_temporary_files() {
     assert_eq!(std::fs::read_to_string(blocker.join("keep")).unwrap(), "k");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
 }
+
+#[cfg(unix)]
+#[test]
+fn written_files_get_the_permissions_of_any_new_file() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let ours = dir.path().join("out.yaml");
+    phalanx_io::write_text(&ours, "x\n").unwrap();
+    // What the umask makes of a plainly created file.
+    let plain = dir.path().join("plain");
+    std::fs::File::create(&plain).unwrap();
+    let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode(&ours), mode(&plain));
+}
