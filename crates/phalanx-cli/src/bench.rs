@@ -301,10 +301,11 @@ fn write_outputs(
     phalanx_io::write_text(&out.join("cells.json"), &format!("{json}\n"))?;
     phalanx_io::write_text(&out.join(format!("{name}.md")), &report::markdown(cases, cells))?;
     let svg = out.join(format!("{name}.svg"));
+    let tmp = out.join(format!(".{name}.svg.tmp"));
     if name == "pareto" {
-        report::plot_pareto(cases, methods, cells, &svg)?;
+        report::plot_pareto(cases, methods, cells, &tmp)?;
     } else {
-        report::plot_table2(cases, methods, cells, &svg)?;
+        report::plot_table2(cases, methods, cells, &tmp)?;
     }
-    Ok(())
+    std::fs::rename(&tmp, &svg).with_context(|| format!("writing {}", svg.display()))
 }

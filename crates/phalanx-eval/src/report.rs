@@ -213,7 +213,8 @@ pub fn plot_table2(
 
 /// `pareto.svg`: per case (one panel each), every method's point (mean makespan, mean Table
 /// II formation loss over its solved runs); the points of one family (the name before `:`,
-/// e.g. `jsa` for `jsa:0.1`, `jsa:1`) are joined in order of makespan.
+/// e.g. `jsa` for `jsa:0.1`, `jsa:1`) are joined in order of makespan; on Table II's rows a
+/// cross marks the paper's method.
 ///
 /// # Errors
 /// If the file cannot be written.
@@ -245,7 +246,9 @@ pub fn plot_pareto(
                 p.sort_by(|a, b| a.0.total_cmp(&b.0));
                 p
             };
-            let all: Vec<(f64, f64)> = families.iter().flat_map(|f| points(f)).collect();
+            let paper = case.paper.map(|p| (p.makespan, p.formation_loss));
+            let all: Vec<(f64, f64)> =
+                families.iter().flat_map(|f| points(f)).chain(paper).collect();
             let x_lo = all.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
             let x_hi = all.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
             let y_hi = all.iter().map(|p| p.1).fold(0.0_f64, f64::max);
@@ -270,6 +273,12 @@ pub fn plot_pareto(
                     .draw_series(p.iter().map(|&q| Circle::new(q, 5, colour.filled())))?
                     .label(*family)
                     .legend(move |(x, y)| Circle::new((x, y), 5, colour.filled()));
+            }
+            if let Some(point) = paper {
+                chart
+                    .draw_series(std::iter::once(Cross::new(point, 7, BLACK.stroke_width(2))))?
+                    .label("the paper's method")
+                    .legend(|(x, y)| Cross::new((x, y), 5, BLACK.stroke_width(2)));
             }
             chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
         }
