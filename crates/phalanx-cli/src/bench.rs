@@ -30,7 +30,7 @@ use phalanx_eval::{BenchError, Case, Method, Settings, Solver};
 use phalanx_plan::PlannerChoice;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::{astar, cbs, ecbs, swarm};
-use phalanx_rl::{Hierarchy, Rollouts};
+use phalanx_rl::Hierarchy;
 
 use crate::{meta, models, util};
 
@@ -56,12 +56,8 @@ pub(crate) struct BenchArgs {
     /// Wall-clock limit of each planner run, seconds.
     #[arg(long, default_value_t = 300.0, value_parser = util::positive)]
     time_limit: f64,
-    /// Test-time rollouts of the learned methods.
-    #[arg(long, default_value_t = 8)]
-    rollouts: usize,
-    /// Probability of a random action per agent and step in the rollouts after the first.
-    #[arg(long, default_value_t = 0.05, value_parser = util::fraction)]
-    random_prob: f64,
+    #[command(flatten)]
+    rollouts: meta::RolloutArgs,
     /// Methods, comma-separated (see `phalanx bench --help`; default: every method that
     /// exists, the hierarchy only when a meta policy is found).
     #[arg(long, value_delimiter = ',')]
@@ -89,7 +85,6 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         BenchCmd::Table2(args) => ("table2", args),
         BenchCmd::Pareto(args) => ("pareto", args),
     };
-    anyhow::ensure!(args.rollouts >= 1, "--rollouts must be at least 1");
     anyhow::ensure!(args.maps >= 1, "--maps must be at least 1");
     // Each run on one thread: its time is its own.
     rayon::ThreadPoolBuilder::new().num_threads(1).build_global().ok();
@@ -104,11 +99,7 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         seed: args.seed,
         settings: Settings {
             time_limit_s: if quick { args.time_limit.min(10.0) } else { args.time_limit },
-            rollouts: Rollouts {
-                count: if quick { args.rollouts.min(2) } else { args.rollouts },
-                epsilon: args.random_prob,
-                seed: args.seed,
-            },
+            rollouts: args.rollouts.rollouts(args.seed, if quick { 2 } else { usize::MAX }),
         },
     };
     let meta_file = match &args.meta {

@@ -8,8 +8,8 @@ use anyhow::Context as _;
 use burn::tensor::Device;
 use phalanx_rl::policy_file::{Header, load_policy_any};
 use phalanx_rl::{
-    FormationWeight, Hierarchy, Learner, LowLevel, MetaInfo, Policy, PolicyRef, ScriptedMeta,
-    TrainConfig, estimate_weight,
+    FormationWeight, Hierarchy, Learner, LowLevel, MetaInfo, Policy, PolicyRef, Rollouts,
+    ScriptedMeta, TrainConfig, estimate_weight,
 };
 
 use crate::{models, util};
@@ -109,6 +109,26 @@ impl LeaderArgs {
             "--wait-above is a flag of the leader rule only"
         );
         Ok(ScriptedMeta::new(self.wait_above, self.patience))
+    }
+}
+
+/// The test-time rollouts of the learned methods (`solve`, `bench`; SPEC §6).
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct RolloutArgs {
+    /// Learned policies: rollouts per instance, the first greedy, the others with random
+    /// actions (--random-prob); the best one counts and the runtime covers all of them.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..))]
+    rollouts: u32,
+    /// Learned policies: probability of a random allowed action per agent and step in the
+    /// rollouts after the first.
+    #[arg(long, default_value_t = 0.05, value_parser = crate::util::fraction)]
+    random_prob: f64,
+}
+
+impl RolloutArgs {
+    /// The rollouts, their random actions drawn from `seed`, at most `max` of them.
+    pub(crate) fn rollouts(&self, seed: u64, max: usize) -> Rollouts {
+        Rollouts { count: (self.rollouts as usize).min(max), epsilon: self.random_prob, seed }
     }
 }
 

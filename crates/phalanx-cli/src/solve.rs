@@ -24,7 +24,6 @@ use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
-use phalanx_rl::Rollouts;
 use phalanx_rl::policy_file::load_policy_any;
 
 use crate::{meta, models, util};
@@ -69,13 +68,8 @@ pub(crate) struct SolveCmd {
     /// Wall-clock limit in seconds (classical planners).
     #[arg(long, default_value_t = 300.0, value_parser = util::positive)]
     time_limit: f64,
-    /// Learned policies: rollouts (the first greedy; the best one counts).
-    #[arg(long, default_value_t = 8)]
-    rollouts: usize,
-    /// Learned policies: probability of a random allowed action per agent and step in the
-    /// rollouts after the first.
-    #[arg(long, default_value_t = 0.05, value_parser = util::fraction)]
-    random_prob: f64,
+    #[command(flatten)]
+    rollouts: meta::RolloutArgs,
     /// Learned policies: the weights directory (hrl: the meta policy's; default: the
     /// shipped models/meta or models/pathfinding).
     #[arg(long, value_name = "DIR")]
@@ -145,7 +139,6 @@ fn report_summary(summary: &SolveSummary, json: bool) -> anyhow::Result<ExitCode
 
 /// Solves with a learned policy (see the module docs).
 fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<ExitCode> {
-    anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
     let instance = &named.instance;
     let hrl = cmd.planner == PlannerName::Hrl;
     let scripted = cmd.planner == PlannerName::Leader;
@@ -175,7 +168,7 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
         PlannerName::Leader => "leader",
         _ => "pathfinding",
     };
-    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
+    let rollouts = cmd.rollouts.rollouts(cmd.seed, usize::MAX);
     let settings = Settings { time_limit_s: cmd.time_limit, rollouts };
     let (summary, plan) = Method::new(planner, solver)
         .run(instance, &settings)

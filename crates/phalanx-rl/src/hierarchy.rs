@@ -406,8 +406,8 @@ pub enum MetaPolicy {
 /// A scripted meta policy, the leader–follower rule: the agent in front (the path-finding
 /// leader) runs path finding and the others formation, so that they follow the frame
 /// anchored at the leader's next cell. With `wait_above`, while the team's `L_f` is above it
-/// every agent runs formation (the leader, at the team's centre, holds; the others close
-/// up) as long as closing up helps: the first such step, and each next one while the last
+/// every agent runs formation (the front agent holds and the others close up on it, see
+/// [`HierEnv::place_frame`]) as long as closing up helps: the first such step, and each next one while the last
 /// lowered `L_f`, at most `patience` in a row; then the leader moves on (a follower that
 /// cannot close up does not stop the team).
 #[derive(Clone, Debug, PartialEq)]
