@@ -42,6 +42,24 @@ pub(crate) enum BenchCmd {
     /// The Pareto front on the 20² rows: weight sweeps of the methods, with joint-state A*'s
     /// exact front.
     Pareto(BenchArgs),
+    /// Runtime and success against map side and team size (log axes).
+    Scaling(ScalingArgs),
+}
+
+/// The flags of `bench scaling`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct ScalingArgs {
+    #[command(flatten)]
+    common: BenchArgs,
+    /// Map sides (`--quick`: those up to 64).
+    #[arg(long, value_delimiter = ',', default_value = "20,32,64,128,256,512,1024,2048")]
+    sides: Vec<u32>,
+    /// Team sizes (`--quick`: the first).
+    #[arg(long, value_delimiter = ',', default_value = "3,5,8")]
+    agents: Vec<usize>,
+    /// Obstacle density.
+    #[arg(long, default_value_t = 0.15, value_parser = util::fraction)]
+    density: f64,
 }
 
 /// The flags of every benchmark.
@@ -81,9 +99,13 @@ pub(crate) struct BenchArgs {
 
 /// Runs `phalanx bench`.
 pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
-    let (name, args) = match cmd {
-        BenchCmd::Table2(args) => ("table2", args),
-        BenchCmd::Pareto(args) => ("pareto", args),
+    let (name, args, scaling) = match cmd {
+        BenchCmd::Table2(args) => ("table2", args, None),
+        BenchCmd::Pareto(args) => ("pareto", args, None),
+        BenchCmd::Scaling(s) => {
+            let grid = (s.sides, s.agents, s.density);
+            ("scaling", s.common, Some(grid))
+        }
     };
     anyhow::ensure!(args.maps >= 1, "--maps must be at least 1");
     // Each run on one thread: its time is its own.
@@ -93,6 +115,19 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
     let mut cases = Case::table2(quick);
     if name == "pareto" {
         cases.retain(|c| c.paper.is_some_and(|p| p.side == 20));
+    }
+    if let Some((sides, agents, density)) = &scaling {
+        anyhow::ensure!(!sides.is_empty() && !agents.is_empty(), "--sides and --agents name none");
+        let agents = if quick { &agents[..1] } else { &agents[..] };
+        cases = agents
+            .iter()
+            .flat_map(|&k| {
+                sides
+                    .iter()
+                    .filter(move |&&side| !quick || side <= 64)
+                    .map(move |&side| Case::new(side, k, *density, None))
+            })
+            .collect();
     }
     let plan = Plan {
         maps: if quick { args.maps.min(2) } else { args.maps },
@@ -125,6 +160,7 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         "jsa_max_side": args.jsa_max_side,
         "quick": quick,
         "meta": meta_file.as_ref().map(|f| f.display().to_string()),
+        "cases": cases.iter().map(|c| c.label.clone()).collect::<Vec<_>>(),
     });
     let settings_path = args.out.join("bench.json");
     let records_path = args.out.join("runs.jsonl");
@@ -192,7 +228,9 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
 
 /// The methods run when `--methods` is not given.
 fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
-    let mut names: Vec<String> = if benchmark == "pareto" {
+    let mut names: Vec<String> = if benchmark == "scaling" {
+        ["cbs", "swarm", "pathfinding", "leader"].map(str::to_owned).to_vec()
+    } else if benchmark == "pareto" {
         ["pathfinding", "leader", "leader:1.5", "leader:0.7", "leader:0.3"]
             .into_iter()
             .chain(["jsa:0", "jsa:0.1", "jsa:0.3", "jsa:1", "jsa:3"])
@@ -293,10 +331,10 @@ fn write_outputs(
     phalanx_io::write_text(&out.join(format!("{name}.md")), &report::markdown(cases, cells))?;
     let svg = out.join(format!("{name}.svg"));
     let tmp = out.join(format!(".{name}.svg.tmp"));
-    if name == "pareto" {
-        report::plot_pareto(cases, methods, cells, &tmp)?;
-    } else {
-        report::plot_table2(cases, methods, cells, &tmp)?;
+    match name {
+        "pareto" => report::plot_pareto(cases, methods, cells, &tmp)?,
+        "scaling" => report::plot_scaling(cases, methods, cells, &tmp)?,
+        _ => report::plot_table2(cases, methods, cells, &tmp)?,
     }
     std::fs::rename(&tmp, &svg).with_context(|| format!("writing {}", svg.display()))
 }

@@ -10,6 +10,8 @@ use std::path::Path;
 use plotters::prelude::*;
 use serde::Serialize;
 
+use phalanx_plan::planner::Outcome;
+
 use crate::BenchError;
 use crate::runs::RunRecord;
 use crate::suite::Case;
@@ -37,6 +39,8 @@ pub struct Cell {
     pub sum_of_costs: Option<f64>,
     /// Mean runtime of every run, seconds.
     pub runtime_s: f64,
+    /// Runs that hit the time limit.
+    pub timeouts: usize,
 }
 
 /// The cells of every (case, method) pair with runs, cases then methods in the given order.
@@ -66,6 +70,7 @@ pub fn cells(records: &[RunRecord], cases: &[Case], methods: &[String]) -> Vec<C
                 formation_loss_mean: mean(&|r| metric(r).formation_loss_mean),
                 sum_of_costs: mean(&|r| metric(r).sum_of_costs as f64),
                 runtime_s: runs.iter().map(|r| r.run.runtime_s).sum::<f64>() / runs.len() as f64,
+                timeouts: runs.iter().filter(|r| r.run.outcome == Outcome::Timeout).count(),
             });
         }
     }
@@ -281,6 +286,114 @@ pub fn plot_pareto(
                     .legend(|(x, y)| Cross::new((x, y), 5, BLACK.stroke_width(2)));
             }
             chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
+        }
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(|err| BenchError::Plot {
+        path: path.display().to_string(),
+        message: err.to_string(),
+    })
+}
+
+/// `scaling.svg`: mean runtime (left, log–log) and success rate (right, log side axis)
+/// against the map side, one line per method and team size; a method's point on a side
+/// where some run timed out is drawn as a triangle (its mean counts those runs at the time
+/// limit).
+///
+/// # Errors
+/// If the file cannot be written.
+pub fn plot_scaling(
+    cases: &[Case],
+    methods: &[String],
+    cells: &[Cell],
+    path: &Path,
+) -> Result<(), BenchError> {
+    let draw = || -> Result<(), Box<dyn std::error::Error>> {
+        let root = SVGBackend::new(path, (1400, 600)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let panels = root.split_evenly((1, 2));
+        let mut teams: Vec<usize> = cases.iter().map(|c| c.agents).collect();
+        teams.sort_unstable();
+        teams.dedup();
+        let side_of = |label: &str| cases.iter().find(|c| c.label == label).map(|c| c.side);
+        let agents_of = |label: &str| cases.iter().find(|c| c.label == label).map(|c| c.agents);
+        let lines: Vec<(String, usize, Vec<&Cell>)> = methods
+            .iter()
+            .enumerate()
+            .flat_map(|(k, m)| {
+                teams.iter().map(move |&team| {
+                    let here: Vec<&Cell> = cells
+                        .iter()
+                        .filter(|c| &c.method == m && agents_of(&c.case) == Some(team))
+                        .collect();
+                    (format!("{m}, {team} agents"), k, here)
+                })
+            })
+            .filter(|(_, _, here)| !here.is_empty())
+            .collect();
+        let x_hi = cases.iter().map(|c| f64::from(c.side)).fold(2.0_f64, f64::max) * 1.2;
+        let x_lo = cases.iter().map(|c| f64::from(c.side)).fold(f64::INFINITY, f64::min) / 1.2;
+        let x_lo = if x_lo.is_finite() { x_lo } else { 1.0 };
+        let t_hi = cells.iter().map(|c| c.runtime_s).fold(1e-3_f64, f64::max) * 2.0;
+        let t_lo =
+            cells.iter().map(|c| c.runtime_s).filter(|&t| t > 0.0).fold(t_hi, f64::min) / 2.0;
+        let style = |k: usize, team: usize| {
+            let colour = PALETTE[k % PALETTE.len()];
+            let width = 1 + teams.iter().position(|&t| t == team).unwrap_or(0) as u32;
+            (colour, width)
+        };
+        let mut left = ChartBuilder::on(&panels[0])
+            .caption("runtime per instance (mean, s)", ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(64)
+            .build_cartesian_2d((x_lo..x_hi).log_scale(), (t_lo..t_hi).log_scale())?;
+        left.configure_mesh().x_desc("map side").y_desc("seconds").draw()?;
+        for (label, k, here) in &lines {
+            let team = agents_of(&here[0].case).unwrap_or(0);
+            let (colour, width) = style(*k, team);
+            let mut points: Vec<(f64, f64, bool)> = here
+                .iter()
+                .filter_map(|c| {
+                    Some((f64::from(side_of(&c.case)?), c.runtime_s.max(t_lo), c.timeouts > 0))
+                })
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let line: Vec<(f64, f64)> = points.iter().map(|p| (p.0, p.1)).collect();
+            left.draw_series(LineSeries::new(line, colour.stroke_width(width)))?
+                .label(label.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(width))
+                });
+            left.draw_series(
+                points.iter().filter(|p| !p.2).map(|p| Circle::new((p.0, p.1), 4, colour.filled())),
+            )?;
+            left.draw_series(
+                points
+                    .iter()
+                    .filter(|p| p.2)
+                    .map(|p| TriangleMarker::new((p.0, p.1), 7, colour.filled())),
+            )?;
+        }
+        left.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
+        let mut right = ChartBuilder::on(&panels[1])
+            .caption("success rate (triangles: some runs timed out)", ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(64)
+            .build_cartesian_2d((x_lo..x_hi).log_scale(), 0.0..1.05)?;
+        right.configure_mesh().x_desc("map side").y_desc("success").draw()?;
+        for (_, k, here) in &lines {
+            let team = agents_of(&here[0].case).unwrap_or(0);
+            let (colour, width) = style(*k, team);
+            let mut points: Vec<(f64, f64)> = here
+                .iter()
+                .filter_map(|c| Some((f64::from(side_of(&c.case)?), c.success_rate)))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            right.draw_series(LineSeries::new(points.clone(), colour.stroke_width(width)))?;
+            right.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled())))?;
         }
         root.present()?;
         Ok(())

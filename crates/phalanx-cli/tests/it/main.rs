@@ -449,6 +449,14 @@ fn bench_quick_runs_every_row_and_method_and_resumes() {
     let again = std::fs::read_to_string(d.join("b/runs.jsonl")).unwrap();
     assert_eq!(again.lines().count(), records.len());
     assert_eq!(again.lines().take(10).collect::<Vec<_>>(), kept);
+    // The scaling benchmark: quick, on sides up to 64 with the first team size.
+    let scaling = ["bench", "scaling", "--quick", "--out", "s", "--methods", "cbs,pathfinding"];
+    let (stdout, _) = check(&phalanx(d, &scaling), 0);
+    assert!(stdout.contains("| 64² | 3 | 0.15 | pathfinding |"), "{stdout}");
+    assert!(d.join("s/scaling.svg").is_file());
+    let cells: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("s/cells.json")).unwrap()).unwrap();
+    assert_eq!(cells.as_array().unwrap().len(), 3 * 2, "sides 20, 32, 64 × two methods");
     // Other settings are refused on resume.
     let (_, stderr) = check(&phalanx(d, &[&args[..], &["--resume", "--seed", "5"]].concat()), 2);
     assert!(stderr.contains("other settings"), "{stderr}");
