@@ -3,7 +3,10 @@
 //!
 //! - `bench table2`: the seven rows of the paper's Table II (SPEC §8);
 //! - `bench pareto`: the 20² rows of Table II, with the methods' weight sweeps (the learned
-//!   front beside joint-state A*'s exact one).
+//!   front beside joint-state A*'s exact one);
+//! - `bench scaling`: runtime and success against map side and team size;
+//! - `bench movingai`: real maps, a formation and its translated goals placed on each
+//!   (`phalanx_gen::formation_on_map`).
 //!
 //! Methods are named `NAME[:PARAM]`: `cbs`, `ecbs[:W]` (suboptimality bound, default 1.2),
 //! `swarm`, `astar`, `jsa` (formation first, then makespan) or `jsa:W` (minimises
@@ -44,6 +47,23 @@ pub(crate) enum BenchCmd {
     Pareto(BenchArgs),
     /// Runtime and success against map side and team size (log axes).
     Scaling(ScalingArgs),
+    /// Real maps nobody here drew (MovingAI `.map` files), a formation and its translated
+    /// goals placed on each.
+    Movingai(MovingAiArgs),
+}
+
+/// The flags of `bench movingai`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct MovingAiArgs {
+    #[command(flatten)]
+    common: BenchArgs,
+    /// The maps: `.map` files, or directories whose `.map` files are all taken (sorted by
+    /// name).
+    #[arg(long, value_delimiter = ',', default_value = "test-data/movingai")]
+    maps_from: Vec<PathBuf>,
+    /// Agents per team.
+    #[arg(long, default_value_t = 3)]
+    agents: usize,
 }
 
 /// The flags of `bench scaling`.
@@ -106,18 +126,18 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
             let grid = (s.sides, s.agents, s.density);
             ("scaling", s.common, Some(grid))
         }
+        BenchCmd::Movingai(m) => {
+            let cases = map_cases(&m.maps_from, m.agents)?;
+            return run_cases("movingai", m.common, cases);
+        }
     };
-    anyhow::ensure!(args.maps >= 1, "--maps must be at least 1");
-    // Each run on one thread: its time is its own.
-    rayon::ThreadPoolBuilder::new().num_threads(1).build_global().ok();
-
-    let quick = args.quick;
-    let mut cases = Case::table2(quick);
+    let mut cases = Case::table2(args.quick);
     if name == "pareto" {
         cases.retain(|c| c.paper.is_some_and(|p| p.side == 20));
     }
     if let Some((sides, agents, density)) = &scaling {
         anyhow::ensure!(!sides.is_empty() && !agents.is_empty(), "--sides and --agents name none");
+        let quick = args.quick;
         let agents = if quick { &agents[..1] } else { &agents[..] };
         cases = agents
             .iter()
@@ -129,6 +149,15 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
             })
             .collect();
     }
+    run_cases(name, args, cases)
+}
+
+/// The benchmark `name` of `cases` with the flags `args`.
+fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(args.maps >= 1, "--maps must be at least 1");
+    // Each run on one thread: its time is its own.
+    rayon::ThreadPoolBuilder::new().num_threads(1).build_global().ok();
+    let quick = args.quick;
     let plan = Plan {
         maps: if quick { args.maps.min(2) } else { args.maps },
         seed: args.seed,
@@ -226,9 +255,38 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The cases of `bench movingai`: every map of `sources` (files, or the `.map` files of
+/// directories, sorted by name), teams of `agents`.
+fn map_cases(sources: &[PathBuf], agents: usize) -> anyhow::Result<Vec<Case>> {
+    let mut files = Vec::new();
+    for source in sources {
+        if source.is_dir() {
+            let entries = std::fs::read_dir(source)
+                .with_context(|| format!("reading the directory {}", source.display()))?;
+            let mut maps: Vec<PathBuf> = entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "map"))
+                .collect();
+            maps.sort();
+            files.extend(maps);
+        } else {
+            files.push(source.clone());
+        }
+    }
+    anyhow::ensure!(!files.is_empty(), "--maps-from names no .map file");
+    files
+        .iter()
+        .map(|file| {
+            let map = phalanx_io::read_map(file).context("reading a benchmark map")?;
+            let name = file.file_stem().map(|s| s.to_string_lossy().into_owned());
+            Ok(Case::on_map(&name.unwrap_or_default(), map.to_grid(), agents))
+        })
+        .collect()
+}
+
 /// The methods run when `--methods` is not given.
 fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
-    let mut names: Vec<String> = if benchmark == "scaling" {
+    let mut names: Vec<String> = if benchmark == "scaling" || benchmark == "movingai" {
         ["cbs", "swarm", "pathfinding", "leader"].map(str::to_owned).to_vec()
     } else if benchmark == "pareto" {
         ["pathfinding", "leader", "leader:1.5", "leader:0.7", "leader:0.3"]
@@ -333,6 +391,7 @@ fn write_outputs(
     let tmp = out.join(format!(".{name}.svg.tmp"));
     match name {
         "pareto" => report::plot_pareto(cases, methods, cells, &tmp)?,
+        "movingai" => report::plot_table2(cases, methods, cells, &tmp)?,
         "scaling" => report::plot_scaling(cases, methods, cells, &tmp)?,
         _ => report::plot_table2(cases, methods, cells, &tmp)?,
     }

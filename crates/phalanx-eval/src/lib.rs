@@ -39,6 +39,14 @@ pub enum BenchError {
         /// What the generator said.
         source: phalanx_env::EnvError,
     },
+    /// No formation fits on a given map.
+    #[error("case {case}, instance {index}: no formation and translated goals fit on the map")]
+    Placement {
+        /// The case's label.
+        case: String,
+        /// The instance's index.
+        index: u64,
+    },
     /// A method cannot run a case's instances.
     #[error("{method} on {case}: {message}")]
     Method {

@@ -102,7 +102,9 @@ pub fn markdown(cases: &[Case], cells: &[Cell]) -> String {
                 (Some(p), "cbs") => format!("| | | {}", p.cbs_runtime),
                 _ => " | | |".to_owned(),
             };
-            let map = if case.side == case.paper.map_or(case.side, |p| p.side) {
+            let map = if case.map.is_some() {
+                format!("{} ({}²)", case.label, case.side)
+            } else if case.side == case.paper.map_or(case.side, |p| p.side) {
                 format!("{}²", case.side)
             } else {
                 format!("{}² (row {}²)", case.side, case.paper.map_or(case.side, |p| p.side))

@@ -5,8 +5,12 @@
 //! generated, never the training pool), so every method sees the same instances and a
 //! seed names them all.
 
-use phalanx_core::Instance;
-use phalanx_env::{EvalConfig, EvalMaps};
+use std::sync::Arc;
+
+use phalanx_core::{Grid, Instance};
+use phalanx_env::{EvalConfig, EvalMaps, eval_seed};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 use crate::BenchError;
 
@@ -73,12 +77,24 @@ pub struct Case {
     pub density: f64,
     /// The paper's row (Table II cases only).
     pub paper: Option<PaperRow>,
+    /// A given map (a MovingAI map) instead of generated ones: each instance places a
+    /// formation and its translated goals on it (`phalanx_gen::formation_on_map`).
+    pub map: Option<Arc<Grid>>,
 }
 
 impl Case {
     /// A case of `side`² maps with `agents` agents at `density`.
     pub fn new(side: u32, agents: usize, density: f64, paper: Option<PaperRow>) -> Case {
-        Case { label: format!("{side}x{agents}@{density}"), side, agents, density, paper }
+        let label = format!("{side}x{agents}@{density}");
+        Case { label, side, agents, density, paper, map: None }
+    }
+
+    /// A case on the given map named `name`, teams of `agents`.
+    pub fn on_map(name: &str, grid: Grid, agents: usize) -> Case {
+        let side = grid.width().max(grid.height());
+        let density = (grid.density() * 1000.0).round() / 1000.0;
+        let label = format!("{name} x{agents}");
+        Case { label, side, agents, density, paper: None, map: Some(Arc::new(grid)) }
     }
 
     /// The rows of Table II; `quick`: on [`QUICK_SIDE`]² maps (labels keep the row and say
@@ -98,11 +114,19 @@ impl Case {
     }
 
     /// Instance `index` of the case's evaluation stream from `seed` (field of view 9) and
-    /// its map seed.
+    /// its map seed; on a given map, the placement drawn from that seed.
     ///
     /// # Errors
     /// If the generator cannot place the team.
     pub fn instance(&self, seed: u64, index: u64) -> Result<(Instance, u64), BenchError> {
+        if let Some(grid) = &self.map {
+            let map_seed = eval_seed(seed, index);
+            let r = phalanx_gen::region_side(self.side);
+            let mut rng = ChaCha8Rng::seed_from_u64(map_seed);
+            let instance = phalanx_gen::formation_on_map(grid, self.agents, r, &mut rng)
+                .ok_or_else(|| BenchError::Placement { case: self.label.clone(), index })?;
+            return Ok((instance, map_seed));
+        }
         let maps = EvalMaps::new(EvalConfig {
             size: self.side,
             density: self.density,

@@ -207,5 +207,56 @@ pub fn random_mapf_instance(
     Instance::new(grid, starts, goals).ok()
 }
 
+/// A formation instance on a given map, which has no start and goal regions (a MovingAI
+/// map): `None` after [`MAX_ATTEMPTS`] draws without one. Each draw:
+/// 1. a corner uniformly among the free cells; the formation is `n_agents` cells of the
+///    `r × r` box at that corner ([`random_formation`] moved there), every one free and
+///    reachable from the corner;
+/// 2. the goal offset: a cell drawn uniformly among those of the corner's component whose
+///    BFS distance from the corner is at least half the component's largest (the far half of
+///    the map as the agents see it); the goals are the formation translated by it, and the
+///    draw is kept when every goal is free and reachable.
+///
+/// So the goals are the start formation translated, as on the paper's maps, every agent can
+/// reach its goal, and the trip is long. All draws come from `rng`.
+pub fn formation_on_map(
+    grid: &Grid,
+    n_agents: usize,
+    r: u32,
+    rng: &mut ChaCha8Rng,
+) -> Option<Instance> {
+    let free: Vec<Cell> = grid.free_cells().collect();
+    if free.is_empty() || n_agents > (r * r) as usize {
+        return None;
+    }
+    for _ in 0..MAX_ATTEMPTS {
+        let corner = free[rng.random_range(0..free.len())];
+        let starts: Vec<Cell> = random_formation(r, n_agents, rng)
+            .into_iter()
+            .map(|c| corner.offset(c.x, c.y))
+            .collect();
+        let dist = phalanx_core::DistanceMap::bfs(grid, corner);
+        let reachable = |c: &Cell| grid.in_bounds(*c) && dist.get(*c).is_some();
+        if !starts.iter().all(reachable) {
+            continue;
+        }
+        let far = free.iter().filter_map(|&c| dist.get(c)).max().unwrap_or(0);
+        let targets: Vec<Cell> =
+            free.iter().copied().filter(|&c| dist.get(c).is_some_and(|d| 2 * d >= far)).collect();
+        if targets.is_empty() {
+            continue;
+        }
+        let target = targets[rng.random_range(0..targets.len())];
+        let (dx, dy) = (target.x - corner.x, target.y - corner.y);
+        let goals: Vec<Cell> = starts.iter().map(|c| c.offset(dx, dy)).collect();
+        if goals.iter().all(reachable)
+            && let Ok(instance) = Instance::new(grid.clone(), starts, goals)
+        {
+            return Some(instance);
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests;

@@ -102,3 +102,31 @@ fn large_maps_use_ten_cell_regions() {
     assert_eq!(region_side(511), 5);
     assert_eq!(region_side(512), 10);
 }
+
+#[test]
+fn formations_on_a_given_map_are_translated_reachable_and_far() {
+    // Two rooms joined by a door: the far half of the map is the other room.
+    let grid = Grid::from_fn(40, 12, |c| c.x == 20 && c.y != 6);
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut trips = Vec::new();
+    for _ in 0..20 {
+        let inst = formation_on_map(&grid, 4, 5, &mut rng).unwrap();
+        let (s, g) = (inst.starts(), inst.goals());
+        let (dx, dy) = (g[0].x - s[0].x, g[0].y - s[0].y);
+        assert!(s.iter().zip(g).all(|(s, g)| g.x - s.x == dx && g.y - s.y == dy));
+        for (s, g) in s.iter().zip(g) {
+            trips.push(DistanceMap::bfs(&grid, *s).get(*g).expect("every goal is reachable"));
+        }
+    }
+    // Long trips: the far half of the map (its largest distances are about 30 to 45).
+    let mean = trips.iter().sum::<u32>() as f64 / trips.len() as f64;
+    assert!(mean >= 15.0, "mean trip {mean}");
+    assert!(trips.iter().all(|&d| d > 0));
+    // The same stream, the same instance.
+    let a = formation_on_map(&grid, 3, 5, &mut ChaCha8Rng::seed_from_u64(9));
+    let b = formation_on_map(&grid, 3, 5, &mut ChaCha8Rng::seed_from_u64(9));
+    assert_eq!(a.unwrap().starts(), b.unwrap().starts());
+    // No room: a map with one free cell cannot hold two agents.
+    let tiny = Grid::from_fn(8, 8, |c| c != Cell::new(0, 0));
+    assert!(formation_on_map(&tiny, 2, 5, &mut rng).is_none());
+}

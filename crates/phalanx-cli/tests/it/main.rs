@@ -457,6 +457,15 @@ fn bench_quick_runs_every_row_and_method_and_resumes() {
     let cells: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("s/cells.json")).unwrap()).unwrap();
     assert_eq!(cells.as_array().unwrap().len(), 3 * 2, "sides 20, 32, 64 × two methods");
+    // Real maps: a formation placed on each shipped MovingAI map.
+    let maps = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../test-data/movingai/den312d.map");
+    let real = ["bench", "movingai", "--quick", "--out", "m", "--methods", "cbs,swarm"];
+    let maps_from = maps.display().to_string();
+    let (stdout, _) = check(&phalanx(d, &[&real[..], &["--maps-from", &maps_from]].concat()), 0);
+    assert!(stdout.contains("| den312d x3 (81²) | 3 |"), "{stdout}");
+    let runs = std::fs::read_to_string(d.join("m/runs.jsonl")).unwrap();
+    assert_eq!(runs.lines().count(), 2 * 2);
+    assert!(runs.lines().all(|l| l.contains("\"outcome\":\"solved\"")), "{runs}");
     // Other settings are refused on resume.
     let (_, stderr) = check(&phalanx(d, &[&args[..], &["--resume", "--seed", "5"]].concat()), 2);
     assert!(stderr.contains("other settings"), "{stderr}");
