@@ -125,6 +125,20 @@ pub fn markdown(cases: &[Case], cells: &[Cell]) -> String {
     out
 }
 
+/// A panel's chart builder: its caption and the house margins and label areas.
+fn panel<'a, 'b, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, plotters::coord::Shift>,
+    caption: &str,
+) -> ChartBuilder<'a, 'b, DB> {
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(caption, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64);
+    builder
+}
+
 /// Colours of the methods in the figures, in order.
 const PALETTE: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
@@ -185,11 +199,7 @@ pub fn plot_table2(
         };
         let n = cases.len().max(1);
         {
-            let mut chart = ChartBuilder::on(&panels[0])
-                .caption("makespan (solved runs, mean)", ("sans-serif", 18))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(56)
+            let mut chart = panel(&panels[0], "makespan (solved runs, mean)")
                 .build_cartesian_2d(0..n, (1.0..hi(&makespan)).log_scale())?;
             chart.configure_mesh().x_labels(n).x_label_formatter(&label).draw()?;
             for (k, (name, points)) in methods.iter().zip(&makespan).enumerate() {
@@ -201,11 +211,7 @@ pub fn plot_table2(
             }
             chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
         }
-        let mut chart = ChartBuilder::on(&panels[1])
-            .caption("Table II formation loss (solved runs, mean)", ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(56)
+        let mut chart = panel(&panels[1], "Table II formation loss (solved runs, mean)")
             .build_cartesian_2d(0..n, 0.0..hi(&loss))?;
         chart.configure_mesh().x_labels(n).x_label_formatter(&label).draw()?;
         for (k, points) in loss.iter().enumerate() {
@@ -261,11 +267,7 @@ pub fn plot_pareto(
             let y_hi = all.iter().map(|p| p.1).fold(0.0_f64, f64::max);
             let (x_lo, x_hi) =
                 if x_lo.is_finite() { (x_lo * 0.95, x_hi * 1.05) } else { (0.0, 1.0) };
-            let mut chart = ChartBuilder::on(area)
-                .caption(format!("{}: makespan vs formation loss", case.label), ("sans-serif", 18))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(56)
+            let mut chart = panel(area, &format!("{}: makespan vs formation loss", case.label))
                 .build_cartesian_2d(x_lo..x_hi.max(x_lo + 1.0), 0.0..(y_hi * 1.1).max(0.1))?;
             chart
                 .configure_mesh()
@@ -345,11 +347,7 @@ pub fn plot_scaling(
             let width = 1 + teams.iter().position(|&t| t == team).unwrap_or(0) as u32;
             (colour, width)
         };
-        let mut left = ChartBuilder::on(&panels[0])
-            .caption("runtime per instance (mean, s)", ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(64)
+        let mut left = panel(&panels[0], "runtime per instance (mean, s)")
             .build_cartesian_2d((x_lo..x_hi).log_scale(), (t_lo..t_hi).log_scale())?;
         left.configure_mesh().x_desc("map side").y_desc("seconds").draw()?;
         for (label, k, here) in &lines {
@@ -379,11 +377,7 @@ pub fn plot_scaling(
             )?;
         }
         left.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
-        let mut right = ChartBuilder::on(&panels[1])
-            .caption("success rate (triangles: some runs timed out)", ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(64)
+        let mut right = panel(&panels[1], "success rate (triangles: some runs timed out)")
             .build_cartesian_2d((x_lo..x_hi).log_scale(), 0.0..1.05)?;
         right.configure_mesh().x_desc("map side").y_desc("success").draw()?;
         for (_, k, here) in &lines {
