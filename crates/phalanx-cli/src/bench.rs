@@ -356,7 +356,8 @@ fn method(spec: &str, args: &BenchArgs, meta_file: Option<&Path>) -> anyhow::Res
         }
         "leader" => {
             let rule = phalanx_rl::ScriptedMeta::new(number()?, 8);
-            let low = meta::low_level_of(None, None)?;
+            let (pathfinding, _) = meta::load(None, "pathfinding")?;
+            let low = meta::low_level_of(pathfinding, None)?;
             Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
         }
         "hrl" => {

@@ -181,10 +181,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
     let mut progress = |done: usize| bar.set_position(done as u64);
     let episodes = if scripted {
-        let low = meta::low_level_of(
-            cmd.pathfinding_weights.as_deref(),
-            cmd.formation_weights.as_deref(),
-        )?;
+        let low = meta::low_level_of(policy, cmd.formation_weights.as_deref())?;
         let mut hierarchy = Hierarchy::scripted(rule, low);
         evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
     } else if cmd.policy == PolicyName::Hrl {

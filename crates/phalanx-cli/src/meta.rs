@@ -132,15 +132,14 @@ impl RolloutArgs {
     }
 }
 
-/// The low level of the given path-finding and formation policies (the shipped ones by
-/// default).
+/// The low level of the loaded path-finding policy and the formation policy of `formation`
+/// (the shipped one by default).
 pub(crate) fn low_level_of(
-    pathfinding: Option<&Path>,
+    pathfinding: Policy,
     formation: Option<&Path>,
 ) -> anyhow::Result<LowLevel> {
-    let (pf, _) = load(pathfinding, "pathfinding")?;
     let (fm, _) = load(formation, "formation")?;
-    LowLevel::new(pf, fm).context("the low-level policies")
+    LowLevel::new(pathfinding, fm).context("the low-level policies")
 }
 
 /// The hierarchy of the meta policy `meta` (read from `file` with `header`) over the

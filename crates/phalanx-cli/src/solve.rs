@@ -147,18 +147,11 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let file = models::weights_file(cmd.weights.as_deref(), name)?;
     let (policy, header) = load_policy_any(&file, &Device::flex())
         .with_context(|| format!("loading the {name} policy"))?;
-    let n_max = header.net_config.n_agents_max;
-    anyhow::ensure!(
-        instance.n_agents() <= n_max,
-        "{}: {} agents, the policy takes at most {n_max}",
-        cmd.instance.display(),
-        instance.n_agents()
-    );
     let solver = if hrl {
         let hierarchy = meta::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
         Solver::Hierarchy(Box::new(hierarchy))
     } else if scripted {
-        let low = meta::low_level_of(Some(&file), None)?;
+        let low = meta::low_level_of(policy, None)?;
         Solver::Hierarchy(Box::new(phalanx_rl::Hierarchy::scripted(rule, low)))
     } else {
         Solver::PathFinding(Box::new(policy))
@@ -170,7 +163,9 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     };
     let rollouts = cmd.rollouts.rollouts(cmd.seed, usize::MAX);
     let settings = Settings { time_limit_s: cmd.time_limit, rollouts };
-    let (summary, plan) = Method::new(planner, solver)
+    let mut method = Method::new(planner, solver);
+    method.fits(instance).map_err(|why| anyhow::anyhow!("{}: {why}", cmd.instance.display()))?;
+    let (summary, plan) = method
         .run(instance, &settings)
         .with_context(|| format!("running the {name} policy on {}", cmd.instance.display()))?;
     let solved = summary.outcome == Outcome::Solved;

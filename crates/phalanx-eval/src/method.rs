@@ -94,13 +94,12 @@ impl Method {
         let slots = match &self.solver {
             Solver::Planner(_) => return Ok(()),
             Solver::PathFinding(policy) => policy.config().n_agents_max,
-            Solver::Hierarchy(hierarchy) => hierarchy.low.n_agents_max(),
+            Solver::Hierarchy(hierarchy) => hierarchy.n_agents_max(),
         };
         if instance.n_agents() > slots {
             return Err(format!(
-                "{} agents, the {} policy takes at most {slots}",
-                instance.n_agents(),
-                self.name
+                "{} agents, the policy takes at most {slots}",
+                instance.n_agents()
             ));
         }
         Ok(())

@@ -521,6 +521,15 @@ impl Hierarchy {
         self.weight.as_ref().is_some_and(FormationWeight::conditioned)
     }
 
+    /// The largest team it runs: the agent slots of the low level and of a learned meta
+    /// network.
+    pub fn n_agents_max(&self) -> usize {
+        match &self.meta {
+            MetaPolicy::Learned(meta) => meta.config().n_agents_max.min(self.low.n_agents_max()),
+            MetaPolicy::Scripted(_) => self.low.n_agents_max(),
+        }
+    }
+
     /// The meta reward's formation weight for teams of `n_agents` (0 for a scripted meta
     /// policy, which has no reward).
     pub fn formation_weight(&self, n_agents: usize) -> f64 {
