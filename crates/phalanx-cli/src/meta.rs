@@ -62,30 +62,34 @@ pub(crate) fn low_level(
     if let Some(saved) = learner.meta() {
         same_low_level(saved, &pf_ref, &fm_ref, "the checkpoint's meta policy")?;
     }
-    let base = match (&config.meta.base_weight, learner.meta()) {
-        (Some(base), _) => base.clone(),
-        (None, Some(saved)) => saved.weight.base.clone(),
-        (None, None) => {
-            util::warn("estimating the base weights w_f (Eq. 14) with the formation policy");
-            let estimates = estimate_weight(
-                &mut formation,
-                &config.agent_counts,
-                &config.meta.estimate,
-                &mut |_| {},
-            )
-            .context("estimating the base weights")?;
-            for e in &estimates {
-                util::warn(&format!(
-                    "w_f = {:.3} [{:.3}, {:.3}] for {} agents",
-                    e.weight, e.weight_interval[0], e.weight_interval[1], e.n_agents
-                ));
-            }
-            estimates.iter().map(|e| (e.n_agents, e.weight)).collect()
-        }
-    };
+    let saved = learner.meta().map(|saved| saved.weight.base.as_slice());
+    let base = base_weights(config, saved, &mut formation)?;
     let weight = FormationWeight { base, multiples: config.meta.multiples };
     let low = LowLevel::new(pathfinding, formation).context("the low-level policies")?;
     Ok((low, MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref }))
+}
+
+/// The base weights `w_f` per team size of a meta or end-to-end run: the config's, else the
+/// checkpoint's (`saved`), else estimated (Eq. 14) with `formation` for the config's sizes.
+pub(crate) fn base_weights(
+    config: &TrainConfig,
+    saved: Option<&[(usize, f64)]>,
+    formation: &mut Policy,
+) -> anyhow::Result<Vec<(usize, f64)>> {
+    if let Some(base) = config.meta.base_weight.as_deref().or(saved) {
+        return Ok(base.to_vec());
+    }
+    util::warn("estimating the base weights w_f (Eq. 14) with the formation policy");
+    let estimates =
+        estimate_weight(formation, &config.agent_counts, &config.meta.estimate, &mut |_| {})
+            .context("estimating the base weights")?;
+    for e in &estimates {
+        util::warn(&format!(
+            "w_f = {:.3} [{:.3}, {:.3}] for {} agents",
+            e.weight, e.weight_interval[0], e.weight_interval[1], e.n_agents
+        ));
+    }
+    Ok(estimates.iter().map(|e| (e.n_agents, e.weight)).collect())
 }
 
 /// The scripted leader–follower meta rule's flags (`--policy leader`, `--planner leader`).

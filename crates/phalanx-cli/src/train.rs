@@ -1,6 +1,6 @@
-//! `phalanx train pathfinding|formation|meta`: trains a low-level policy (VDN + double DQN,
+//! `phalanx train pathfinding|formation|meta|e2e`: trains a low-level policy (VDN + double DQN,
 //! SPEC §6) on the training pool, or the meta policy over the two frozen ones (`phalanx_rl::
-//! MetaEnv`), with a progress bar on stderr, metrics appended as JSON lines to
+//! MetaEnv`) or the end-to-end baseline on the meta reward, with a progress bar on stderr, metrics appended as JSON lines to
 //! `DIR/metrics.jsonl` (one `{"name", "step", "value"}` object per value, names of
 //! `phalanx_rl::metrics`), an atomic checkpoint `DIR/checkpoint` with the policy file
 //! `DIR/policy.bin` beside it every N updates and at the end, and the training curves
@@ -48,6 +48,9 @@ pub(crate) enum TaskName {
     /// The meta policy: choose path finding or formation per agent and step, over the frozen
     /// low-level policies, on the meta reward (Table I) weighted by w_f (Eq. 14).
     Meta,
+    /// The end-to-end VDN baseline (SPEC §7): the five moves on the meta reward with
+    /// formation clipping and the same w_f, no hierarchy.
+    E2e,
 }
 
 impl TaskName {
@@ -57,6 +60,7 @@ impl TaskName {
             TaskName::PathFinding => TrainTask::PathFinding,
             TaskName::Formation => TrainTask::Formation,
             TaskName::Meta => TrainTask::Meta,
+            TaskName::E2e => TrainTask::EndToEnd,
         }
     }
 }
@@ -85,10 +89,10 @@ pub(crate) struct TrainCmd {
     /// overrides the config's `steps`.
     #[arg(long, value_name = "N")]
     steps: Option<u64>,
-    /// Meta: train one meta policy at M times the base weight w_f (not weight-conditioned).
+    /// Meta and e2e: train one policy at M times the base weight w_f (not weight-conditioned).
     #[arg(long, value_name = "M", conflicts_with = "formation_weight", value_parser = util::non_negative)]
     weight_multiple: Option<f64>,
-    /// Meta: train one meta policy with the formation weight W for every team size.
+    /// Meta and e2e: train one policy with the formation weight W for every team size.
     #[arg(long, value_name = "W", value_parser = util::non_negative)]
     formation_weight: Option<f64>,
 }
@@ -110,7 +114,10 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         [("--weight-multiple", cmd.weight_multiple), ("--formation-weight", cmd.formation_weight)]
     {
         if let Some(v) = value {
-            anyhow::ensure!(task == TrainTask::Meta, "{flag} {v} is for `phalanx train meta`");
+            anyhow::ensure!(
+                matches!(task, TrainTask::Meta | TrainTask::EndToEnd),
+                "{flag} {v} is for `phalanx train meta` and `phalanx train e2e`"
+            );
         }
     }
     if let Some(multiple) = cmd.weight_multiple {
@@ -160,6 +167,10 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         let mut collector = config.meta_collector(low, meta.weight.base).with_context(building)?;
         restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
         return train(collector, learner, &config, dir, cmd.resume);
+    }
+    if task == TrainTask::EndToEnd {
+        let (mut formation, _) = meta::load(config.meta.formation.as_deref(), "formation")?;
+        config.meta.base_weight = Some(meta::base_weights(&config, None, &mut formation)?);
     }
     write_config(&saved_config, &config)?;
     let mut collector = config.pool_collector(task).with_context(building)?;
@@ -353,7 +364,7 @@ impl phalanx_rl::MetricSink for Sink {
 
 #[cfg(test)]
 mod tests {
-    use phalanx_rl::{TrainConfig, TrainTask};
+    use phalanx_rl::{Multiples, TrainConfig, TrainTask};
 
     #[test]
     fn task_defaults_fill_only_what_the_file_leaves_out() {
@@ -372,5 +383,22 @@ mod tests {
         assert!(err.unwrap_err().to_string().contains("line 2"));
         let err = TrainConfig::from_json(r#"{"agent_counts": [9]}"#, TrainTask::Meta);
         assert!(err.unwrap_err().to_string().contains("agent count 9"));
+    }
+
+    #[test]
+    fn end_to_end_runs_weigh_each_team_size_by_its_base_weight() {
+        let mut config = TrainConfig::for_task(TrainTask::EndToEnd);
+        let meta = TrainConfig::for_task(TrainTask::Meta);
+        assert_eq!((config.net.n_actions, config.steps), (5, 3 * meta.steps));
+        assert_eq!(config.agent_counts, meta.agent_counts);
+        assert_eq!(TrainTask::EndToEnd.env_task(), phalanx_env::Task::Meta);
+        config.meta.base_weight = Some(vec![(3, 4.0), (5, 2.0)]);
+        config.meta.multiples = Multiples::Fixed { multiple: 0.5 };
+        assert_eq!(config.end_to_end_weight(3), 2.0);
+        assert_eq!(config.end_to_end_weight(5), 1.0);
+        // A size without a base weight falls back to the environment's weight.
+        assert_eq!(config.end_to_end_weight(4), config.env.formation_weight);
+        let collector = TrainConfig { n_envs: 2, ..config }.pool_collector(TrainTask::EndToEnd);
+        assert!(collector.is_ok());
     }
 }

@@ -34,12 +34,12 @@ pub enum Clip {
 
 impl Task {
     /// The action clipping of the task: path finding for [`Task::PathFinding`], formation
-    /// for [`Task::Formation`], none for [`Task::Meta`].
+    /// for [`Task::Formation`] and [`Task::Meta`] (the end-to-end baselines clip as the
+    /// formation policy does, SPEC §7; the hierarchy writes its low-level policies' masks).
     pub fn clip(self) -> Clip {
         match self {
             Task::PathFinding => Clip::PathFinding,
-            Task::Formation => Clip::Formation,
-            Task::Meta => Clip::None,
+            Task::Formation | Task::Meta => Clip::Formation,
         }
     }
 

@@ -189,6 +189,13 @@ impl PoolEnv {
     pub fn env(&self) -> &Env {
         self.inner.env()
     }
+
+    /// Weigh `L_f` by `formation_weight` in the meta task's reward (the end-to-end
+    /// baselines; the other tasks do not use it).
+    pub fn with_formation_weight(mut self, formation_weight: f64) -> PoolEnv {
+        self.inner.env.set_formation_weight(formation_weight);
+        self
+    }
 }
 
 impl MarlEnv for PoolEnv {

@@ -27,6 +27,9 @@ pub enum TrainTask {
     Formation,
     /// The meta policy over the two frozen low-level policies ([`MetaEnv`]).
     Meta,
+    /// The end-to-end VDN baseline (SPEC §7): one network of the five moves on the meta
+    /// reward ([`Task::Meta`] on the pool, formation clipping), no hierarchy.
+    EndToEnd,
 }
 
 impl TrainTask {
@@ -36,6 +39,7 @@ impl TrainTask {
             TrainTask::PathFinding => "pathfinding",
             TrainTask::Formation => "formation",
             TrainTask::Meta => "meta",
+            TrainTask::EndToEnd => "e2e",
         }
     }
 
@@ -44,7 +48,7 @@ impl TrainTask {
         match self {
             TrainTask::PathFinding => Task::PathFinding,
             TrainTask::Formation => Task::Formation,
-            TrainTask::Meta => Task::Meta,
+            TrainTask::Meta | TrainTask::EndToEnd => Task::Meta,
         }
     }
 }
@@ -154,7 +158,10 @@ impl TrainConfig {
     ///   settings);
     /// - meta: teams of 3, 4 and 5 in 15 environments, full-length episodes (`3 × side`), a
     ///   network of two actions reading the weight multiple (`env_vec` 4), reward scale 0.1,
-    ///   300 000 steps.
+    ///   300 000 steps;
+    /// - e2e: the meta task's teams, episodes and reward scale with the five moves, one fixed
+    ///   multiple (1) of the base weights, and 900 000 steps (three times the meta policy's,
+    ///   SPEC §7).
     pub fn for_task(task: TrainTask) -> TrainConfig {
         let base = TrainConfig::default();
         match task {
@@ -174,6 +181,15 @@ impl TrainConfig {
                 net: QNetConfig { n_actions: 2, env_vec: 4, ..QNetConfig::default() },
                 reward_scale: Some(0.1),
                 ..base
+            },
+            TrainTask::EndToEnd => TrainConfig {
+                steps: 900_000,
+                net: QNetConfig::default(),
+                meta: MetaSettings {
+                    multiples: Multiples::Fixed { multiple: 1.0 },
+                    ..MetaSettings::default()
+                },
+                ..TrainConfig::for_task(TrainTask::Meta)
             },
         }
     }
@@ -267,8 +283,25 @@ impl TrainConfig {
         self.reward_scale.or(TrainConfig::for_task(task).reward_scale).unwrap_or(1.0)
     }
 
-    /// The low-level tasks' collector: `n_envs` [`PoolEnv`]s of `task` taking the team sizes
-    /// in turn, with the shaping and reward scale of the settings.
+    /// The formation weight of the end-to-end task for teams of `n_agents`: the base weight
+    /// `meta.base_weight` gives for the size times the fixed multiple, else the environment's
+    /// `formation_weight`.
+    pub fn end_to_end_weight(&self, n_agents: usize) -> f64 {
+        let base = self
+            .meta
+            .base_weight
+            .as_ref()
+            .and_then(|base| base.iter().find(|&&(k, _)| k == n_agents).map(|&(_, w)| w));
+        match (base, self.meta.multiples) {
+            (Some(w), Multiples::Fixed { multiple }) => w * multiple,
+            (Some(w), Multiples::Conditioned { .. }) => w,
+            (None, _) => self.env.formation_weight,
+        }
+    }
+
+    /// The low-level and end-to-end tasks' collector: `n_envs` [`PoolEnv`]s of `task` taking
+    /// the team sizes in turn, with the shaping and reward scale of the settings (and for the
+    /// end-to-end task each size's [`TrainConfig::end_to_end_weight`]).
     ///
     /// # Errors
     /// If the environment or the pool cannot be built.
@@ -281,8 +314,15 @@ impl TrainConfig {
                 .with_reward_scale(self.reward_scale_for(task));
         let counts = &self.agent_counts;
         let envs = (0..self.n_envs)
-            .map(|e| first.with_agents(counts[e % counts.len()]))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|e| {
+                let k = counts[e % counts.len()];
+                let env = first.with_agents(k)?;
+                Ok(match task {
+                    TrainTask::EndToEnd => env.with_formation_weight(self.end_to_end_weight(k)),
+                    _ => env,
+                })
+            })
+            .collect::<Result<Vec<_>, EnvError>>()?;
         Ok(Collector::new(envs, self.step_limit()))
     }
 
