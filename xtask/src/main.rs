@@ -8,7 +8,6 @@
 
 #![allow(clippy::print_stdout, clippy::print_stderr, reason = "a command-line tool")]
 
-use std::path::Path;
 use std::process::{Command, ExitCode};
 
 use anyhow::{Context, bail};
@@ -43,7 +42,7 @@ fn main() -> ExitCode {
 
 /// Crates that must never depend on burn (ARCHITECTURE.md, invariant 1).
 const BURN_FREE: &[&str] =
-    &["phalanx-core", "phalanx-io", "phalanx-gen", "phalanx-env", "phalanx-plan"];
+    &["phalanx-core", "phalanx-io", "phalanx-gen", "phalanx-env", "phalanx-plan", "phalanx-render"];
 
 /// Crates that use the learned policies through phalanx-rl but never name burn themselves.
 const BURN_INDIRECT: &[&str] = &["phalanx-eval"];
@@ -78,9 +77,8 @@ fn tree(krate: &str, extra: &[&str]) -> anyhow::Result<String> {
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
-/// Generates an instance, inspects it, solves it with CBS and SWARM-MAPF, validates the
-/// plans and runs the simulator, all under `out/demo/`, then evaluates the shipped policies
-/// on fresh maps.
+/// Builds the `phalanx` binary and runs `phalanx demo` (the learned hierarchy, path finding,
+/// CBS and SWARM-MAPF on a generated and a MovingAI instance; `out/demo/index.html`).
 fn demo() -> anyhow::Result<()> {
     let root = xtask::workspace_root();
     let status = Command::new(env!("CARGO"))
@@ -92,36 +90,10 @@ fn demo() -> anyhow::Result<()> {
         bail!("building phalanx failed");
     }
     let bin = root.join("target/release/phalanx");
-    let out = root.join("out/demo");
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let instance = out.join("instance.yaml");
-    let steps: Vec<Vec<String>> = demo_steps(&instance, &out);
-    for args in steps {
-        println!("$ phalanx {}", args.join(" "));
-        let status = Command::new(&bin).args(&args).current_dir(&root).status()?;
-        if !status.success() {
-            bail!("phalanx {} failed with {status}", args.join(" "));
-        }
-        println!();
+    println!("$ phalanx demo");
+    let status = Command::new(&bin).arg("demo").current_dir(&root).status()?;
+    if !status.success() {
+        bail!("phalanx demo failed with {status}");
     }
     Ok(())
-}
-
-fn demo_steps(instance: &Path, out: &Path) -> Vec<Vec<String>> {
-    let inst = instance.display().to_string();
-    let plan = |planner: &str| out.join(format!("plan-{planner}.yaml")).display().to_string();
-    let (cbs, swarm) = (plan("cbs"), plan("swarm"));
-    let steps: [&[&str]; 10] = [
-        &["gen", "--size", "32", "--density", "0.15", "--agents", "3", "--seed", "1", "-o", &inst],
-        &["info", &inst],
-        &["solve", &inst, "--planner", "cbs", "-o", &cbs],
-        &["validate", &inst, &cbs],
-        &["solve", &inst, "--planner", "swarm", "-o", &swarm],
-        &["validate", &inst, &swarm],
-        &["sim", &inst, "--policy", "greedy"],
-        &["sim", &inst, "--policy", &format!("plan:{swarm}")],
-        &["eval", "--policy", "pathfinding", "--maps", "20", "--size", "32"],
-        &["eval", "--policy", "formation", "--maps", "20", "--agents", "3"],
-    ];
-    steps.iter().map(|args| args.iter().map(|&a| a.to_string()).collect()).collect()
 }

@@ -166,17 +166,14 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
             rollouts: args.rollouts.rollouts(args.seed, if quick { 2 } else { usize::MAX }),
         },
     };
-    let meta_file = match &args.meta {
-        Some(dir) => Some(models::weights_file(Some(dir), "meta")?),
-        None => models::weights_file(None, "meta").ok(),
-    };
+    let meta_file = meta_file(args.meta.as_deref())?;
     let names = match &args.methods {
         Some(list) => list.clone(),
         None => default_methods(name, meta_file.is_some()),
     };
     let mut methods = names
         .iter()
-        .map(|spec| method(spec, &args, meta_file.as_deref()))
+        .map(|spec| method(spec, args.jsa_max_side, meta_file.as_deref()))
         .collect::<anyhow::Result<Vec<Method>>>()?;
 
     util::written(std::fs::create_dir_all(&args.out), &args.out)?;
@@ -284,6 +281,14 @@ fn map_cases(sources: &[PathBuf], agents: usize) -> anyhow::Result<Vec<Case>> {
         .collect()
 }
 
+/// The meta policy's file: `dir`'s, else the shipped one if there is one.
+pub(crate) fn meta_file(dir: Option<&Path>) -> anyhow::Result<Option<PathBuf>> {
+    Ok(match dir {
+        Some(dir) => Some(models::weights_file(Some(dir), "meta")?),
+        None => models::weights_file(None, "meta").ok(),
+    })
+}
+
 /// The methods run when `--methods` is not given.
 fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
     let mut names: Vec<String> = if benchmark == "scaling" || benchmark == "movingai" {
@@ -309,8 +314,13 @@ fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
     names
 }
 
-/// The method named `spec` (`NAME[:PARAM]`).
-fn method(spec: &str, args: &BenchArgs, meta_file: Option<&Path>) -> anyhow::Result<Method> {
+/// The method named `spec` (`NAME[:PARAM]`); joint-state A* runs on sides up to
+/// `jsa_max_side`, `hrl` needs the meta policy `meta_file`.
+pub(crate) fn method(
+    spec: &str,
+    jsa_max_side: u32,
+    meta_file: Option<&Path>,
+) -> anyhow::Result<Method> {
     let (name, param) = match spec.split_once(':') {
         Some((name, param)) => (name, Some(param)),
         None => (spec, None),
@@ -346,7 +356,7 @@ fn method(spec: &str, args: &BenchArgs, meta_file: Option<&Path>) -> anyhow::Res
                     objective,
                 ))),
             );
-            m.max_side = Some(args.jsa_max_side);
+            m.max_side = Some(jsa_max_side);
             Ok(m)
         }
         "pathfinding" => {

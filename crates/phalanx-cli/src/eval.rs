@@ -20,7 +20,7 @@ use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{EvalSummary, Hierarchy, Rollouts, evaluate, evaluate_hierarchy};
 use serde::Serialize;
 
-use crate::{meta, models, util};
+use crate::{meta, models, render, util};
 
 /// The learned policies `phalanx eval` runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -113,6 +113,15 @@ pub(crate) struct EvalCmd {
     /// hrl, leader: the formation policy's directory or file.
     #[arg(long, value_name = "DIR")]
     formation_weights: Option<PathBuf>,
+    /// Draw the first episodes (`--render-episodes`) as animated SVGs into DIR
+    /// (`episode-0.svg`, …).
+    #[arg(long, value_name = "DIR")]
+    render: Option<PathBuf>,
+    /// How many episodes `--render` draws.
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    render_episodes: usize,
+    #[command(flatten)]
+    picture: render::PictureArgs,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -200,6 +209,17 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     .context("evaluating")?;
     let seconds = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
+    if let Some(dir) = &cmd.render {
+        util::written(std::fs::create_dir_all(dir), dir)?;
+        for (k, (episode, instance)) in
+            episodes.iter().zip(&instances).take(cmd.render_episodes).enumerate()
+        {
+            let path = dir.join(format!("episode-{k}.svg"));
+            let title = format!("{name} episode {k}");
+            let choices = episode.choices.as_deref();
+            render::episode(&path, instance, &episode.plan, choices, &title, &cmd.picture)?;
+        }
+    }
     let decisions: u64 = episodes.iter().map(|it| it.decisions).sum();
     let report = Report {
         policy: name,

@@ -8,6 +8,7 @@
 //! or malformed files, bad flags), 3 an output that cannot be written; see [`util`].
 
 mod bench;
+mod demo;
 mod eval;
 #[path = "gen.rs"]
 mod generate;
@@ -15,6 +16,7 @@ mod info;
 mod meta;
 mod models;
 mod plot;
+mod render;
 mod sim;
 mod solve;
 mod train;
@@ -54,6 +56,11 @@ enum Command {
     Eval(eval::EvalCmd),
     /// Estimate the meta reward's balancing weight w_f (the paper's Eq. 14).
     Weight(weight::WeightCmd),
+    /// The product at a glance: the learned hierarchy, path finding, CBS and SWARM-MAPF on a
+    /// generated and a MovingAI instance; a table and out/demo/index.html with animations.
+    Demo(demo::Args),
+    /// Draw a plan: an animated SVG or GIF, or a PNG of one step.
+    Render(render::Args),
     /// Benchmark every method on the same fresh instances (Table II, the Pareto front).
     #[command(subcommand)]
     Bench(bench::BenchCmd),
@@ -81,6 +88,8 @@ fn main() -> ExitCode {
         Command::Train(cmd) => train::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
         Command::Weight(cmd) => weight::run(cmd),
+        Command::Render(args) => render::run(args),
+        Command::Demo(args) => demo::run(args),
         Command::Bench(cmd) => bench::run(cmd),
     };
     match res {

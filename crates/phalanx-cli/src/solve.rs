@@ -26,7 +26,7 @@ use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
 use phalanx_rl::policy_file::load_policy_any;
 
-use crate::{meta, models, util};
+use crate::{meta, models, render, util};
 
 /// The planners `phalanx solve` offers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -89,12 +89,21 @@ pub(crate) struct SolveCmd {
     /// (to look at a failure; such a plan breaks the validator's last rule, goal not reached).
     #[arg(long)]
     partial: bool,
+    /// Draw the plan (learned policies: the best rollout, also when it stops short) to FILE:
+    /// .svg or .gif animated, .png of the last step.
+    #[arg(long, value_name = "FILE")]
+    render: Option<PathBuf>,
+    #[command(flatten)]
+    picture: render::PictureArgs,
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
 }
 
 pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
+    if let Some(path) = &cmd.render {
+        render::format_of(path)?;
+    }
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let instance = &named.instance;
     if matches!(cmd.planner, PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader) {
@@ -123,6 +132,10 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
             ..PlanStats::of(plan, report.stats.runtime_s)
         };
         util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
+    }
+    if let (Some(path), Ok(plan)) = (&cmd.render, &report.result) {
+        let title = format!("{} {}", summary.planner, render::file_name(&cmd.instance));
+        render::episode(path, instance, plan, None, &title, &cmd.picture)?;
     }
     report_summary(&summary, cmd.json)
 }
@@ -165,13 +178,18 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let settings = Settings { time_limit_s: cmd.time_limit, rollouts };
     let mut method = Method::new(planner, solver);
     method.fits(instance).map_err(|why| anyhow::anyhow!("{}: {why}", cmd.instance.display()))?;
-    let (summary, plan) = method
+    let run = method
         .run(instance, &settings)
         .with_context(|| format!("running the {name} policy on {}", cmd.instance.display()))?;
+    let summary = &run.summary;
     let solved = summary.outcome == Outcome::Solved;
-    if let (Some(path), Some(plan), true) = (&cmd.output, &plan, solved || cmd.partial) {
+    if let (Some(path), Some(plan), true) = (&cmd.output, &run.plan, solved || cmd.partial) {
         let stats = PlanStats::of(plan, summary.runtime_s);
         util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
     }
-    report_summary(&summary, cmd.json)
+    if let (Some(path), Some(plan)) = (&cmd.render, &run.plan) {
+        let title = format!("{planner} {}", render::file_name(&cmd.instance));
+        render::episode(path, instance, plan, run.choices.as_deref(), &title, &cmd.picture)?;
+    }
+    report_summary(summary, cmd.json)
 }

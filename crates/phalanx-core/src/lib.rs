@@ -30,7 +30,7 @@ mod validate;
 pub use action::Action;
 pub use cell::{AgentId, Cell, CellId};
 pub use distance::{DistanceMap, octile_distance};
-pub use formation::{formation_loss, formation_loss_squared};
+pub use formation::{formation_fit, formation_loss, formation_loss_squared};
 pub use grid::Grid;
 pub use instance::{Instance, InstanceError};
 pub use metrics::PlanMetrics;

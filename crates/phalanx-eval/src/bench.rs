@@ -73,8 +73,8 @@ pub fn run(
             message,
         };
         method.fits(instance).map_err(refused)?;
-        let (summary, _) =
-            method.run(instance, &plan.settings).map_err(|err| refused(err.to_string()))?;
+        let summary =
+            method.run(instance, &plan.settings).map_err(|err| refused(err.to_string()))?.summary;
         record(RunRecord {
             case: case.label.clone(),
             side: case.side,

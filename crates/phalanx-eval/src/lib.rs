@@ -21,7 +21,7 @@ pub mod report;
 pub mod runs;
 pub mod suite;
 
-pub use method::{Method, Settings, Solver};
+pub use method::{Method, Settings, Solved, Solver};
 pub use report::{Cell, cells};
 pub use runs::{RunKey, RunRecord};
 pub use suite::{Case, PAPER_ROWS, PaperRow};

@@ -35,6 +35,18 @@ pub struct Method {
     pub max_side: Option<u32>,
 }
 
+/// What [`Method::run`] came back with.
+#[derive(Debug, Clone)]
+pub struct Solved {
+    /// The outcome, runtime and metrics, named after the method.
+    pub summary: SolveSummary,
+    /// The plan, if any.
+    pub plan: Option<Plan>,
+    /// For a hierarchy, every step's low-level choices (`[steps, n_agents]`, 0 = path
+    /// finding, 1 = formation).
+    pub choices: Option<Vec<u8>>,
+}
+
 /// The budget of every run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
@@ -50,17 +62,13 @@ impl Method {
         Method { name: name.into(), solver, max_side: None }
     }
 
-    /// Solves `instance`: the summary (named after the method) and the plan that came back,
-    /// if any; for a learned method the best rollout's plan, also when it stops short of the
-    /// goals (the outcome is then [`Outcome::StepLimit`]).
+    /// Solves `instance`: the summary (named after the method), the plan that came back, if
+    /// any (for a learned method the best rollout's, also when it stops short of the goals:
+    /// the outcome is then [`Outcome::StepLimit`]) and a hierarchy's low-level choices.
     ///
     /// # Errors
     /// If a learned policy's simulator refuses the instance (see also [`Method::fits`]).
-    pub fn run(
-        &mut self,
-        instance: &Instance,
-        settings: &Settings,
-    ) -> Result<(SolveSummary, Option<Plan>), EnvError> {
+    pub fn run(&mut self, instance: &Instance, settings: &Settings) -> Result<Solved, EnvError> {
         let started = Instant::now();
         let instances = std::slice::from_ref(instance);
         let rollouts = settings.rollouts;
@@ -69,7 +77,7 @@ impl Method {
                 let report = run_planner(instance, choice, &Budget::seconds(settings.time_limit_s));
                 let mut summary = SolveSummary::new(instance, choice, &report);
                 summary.planner.clone_from(&self.name);
-                return Ok((summary, report.result.ok()));
+                return Ok(Solved { summary, plan: report.result.ok(), choices: None });
             }
             Solver::PathFinding(policy) => {
                 let env = env_config(policy.config().fov, Task::PathFinding);
@@ -85,7 +93,7 @@ impl Method {
         let result = if best.success { Ok(&best.plan) } else { Err(Outcome::StepLimit) };
         let mut summary = SolveSummary::of(instance, &self.name, result, runtime_s);
         summary.decisions = Some(best.decisions);
-        Ok((summary, Some(best.plan)))
+        Ok(Solved { summary, plan: Some(best.plan), choices: best.choices })
     }
 
     /// Why the method cannot run `instance`, if it cannot: a learned policy has a fixed

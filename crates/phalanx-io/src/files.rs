@@ -46,10 +46,15 @@ pub fn read_text(path: &Path) -> Result<String, Error> {
     std::fs::read_to_string(path).map_err(|err| Error::io(path, err))
 }
 
-/// Writes `text` to `path` atomically: into a temporary file beside it, then renamed over
+/// Writes `text` to `path` atomically ([`write_bytes`]).
+pub fn write_text(path: &Path, text: &str) -> Result<(), Error> {
+    write_bytes(path, text.as_bytes())
+}
+
+/// Writes `bytes` to `path` atomically: into a temporary file beside it, then renamed over
 /// it. On error the temporary file is removed and an existing file is left as it was. The
 /// file gets the usual permissions of a new file (the umask applies).
-pub fn write_text(path: &Path, text: &str) -> Result<(), Error> {
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), Error> {
     let dir = match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
@@ -61,7 +66,7 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), Error> {
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
     let mut tmp = builder.tempfile_in(dir).map_err(|err| Error::io(path, err))?;
-    tmp.write_all(text.as_bytes()).map_err(|err| Error::io(path, err))?;
+    tmp.write_all(bytes).map_err(|err| Error::io(path, err))?;
     tmp.as_file().sync_all().map_err(|err| Error::io(path, err))?;
     tmp.persist(path).map_err(|err| Error::io(path, err.error))?;
     Ok(())

@@ -68,6 +68,20 @@ pub enum Outcome {
     StepLimit,
 }
 
+impl std::fmt::Display for Outcome {
+    /// The snake-case name, as in the JSON summaries (`solved`, `step_limit`, …).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Outcome::Solved => "solved",
+            Outcome::Invalid => "invalid",
+            Outcome::Unsolvable => "unsolvable",
+            Outcome::Timeout => "timeout",
+            Outcome::NodeLimit => "node_limit",
+            Outcome::StepLimit => "step_limit",
+        })
+    }
+}
+
 impl Outcome {
     /// The outcome of a failure.
     pub fn of_failure(failure: PlanFailure) -> Outcome {
@@ -165,17 +179,9 @@ impl SolveSummary {
 
     /// One `key: value` line per field, in a fixed order (what `phalanx solve` prints).
     pub fn to_text(&self) -> String {
-        let outcome = match self.outcome {
-            Outcome::Solved => "solved",
-            Outcome::Invalid => "invalid",
-            Outcome::Unsolvable => "unsolvable",
-            Outcome::Timeout => "timeout",
-            Outcome::NodeLimit => "node_limit",
-            Outcome::StepLimit => "step_limit",
-        };
         let mut lines = vec![
             format!("planner: {}", self.planner),
-            format!("outcome: {outcome}"),
+            format!("outcome: {}", self.outcome),
             format!("runtime_s: {:.6}", self.runtime_s),
             format!("high_level_expanded: {}", self.high_level_expanded),
             format!("low_level_expanded: {}", self.low_level_expanded),

@@ -7,6 +7,8 @@ use std::process::Output;
 use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
+mod render;
+
 fn phalanx(dir: &Path, args: &[&str]) -> Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"))
         .args(args)

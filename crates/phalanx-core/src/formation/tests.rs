@@ -83,3 +83,15 @@ proptest! {
         prop_assert!(root >= 0.0);
     }
 }
+
+proptest! {
+    #[test]
+    fn the_fit_is_the_loss_s_alignment((x, g) in layout()) {
+        let fit = formation_fit(&x, &g);
+        let d2: f64 = x.iter().zip(&fit).map(|(p, &(fx, fy))| {
+            (f64::from(p.x) - fx).powi(2) + (f64::from(p.y) - fy).powi(2)
+        }).sum();
+        let loss2 = formation_loss_squared(&x, &g);
+        prop_assert!((d2 - loss2).abs() < 1e-6 * (1.0 + loss2), "{d2} vs {loss2}");
+    }
+}

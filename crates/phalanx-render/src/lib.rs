@@ -1,0 +1,187 @@
+//! Pictures of phalanx: an instance and a plan (or a learned episode) drawn as an animated
+//! SVG that loops in any browser, an animated GIF, or a PNG of one step; and the training
+//! curves. Bytes out, no IO: the caller writes the files.
+//!
+//! Every picture shows the grid and its obstacles, the goals, each agent with its id and
+//! colour, its trail and its field of view, the **target formation aligned to the team**
+//! (the Procrustes fit the formation loss `L_f` measures against, drawn as dashed rings), a
+//! step counter with `L_f`, a small trace of `L_f` over the episode and, for a hierarchical
+//! episode, a ring showing which low-level policy each agent runs.
+//!
+//! ```
+//! use phalanx_core::{Cell, Grid, Instance, Plan};
+//! use phalanx_render::{Options, Scene, animated_svg};
+//!
+//! let inst = Instance::new(Grid::new(4, 1), vec![Cell::new(0, 0)], vec![Cell::new(3, 0)]).unwrap();
+//! let plan = Plan::from_paths(&[(0..4).map(|x| Cell::new(x, 0)).collect()]);
+//! let scene = Scene { instance: &inst, plan: &plan, choices: None, title: "walk" };
+//! let svg = animated_svg(&scene, &Options::default()).unwrap();
+//! assert!(svg.starts_with("<svg") && svg.contains("animateTransform"));
+//! ```
+//!
+//! Large maps: with [`Crop::Auto`] a map wider than [`scene::AUTO_CROP_SIDE`] cells is shown
+//! through a window that follows the team, and an episode longer than
+//! [`Options::max_frames`] steps shows every `k`-th step; the obstacles drawn are those some
+//! window shows. Output is byte-deterministic (see [`svg`]).
+
+mod curves;
+mod font;
+mod raster;
+pub mod scene;
+mod svg;
+
+use thiserror::Error;
+
+pub use curves::{Curve, training_curves};
+pub use raster::GIF_MAX_FRAMES;
+pub use scene::{Crop, Options, Scene};
+
+use scene::Layout;
+
+/// Why a picture cannot be drawn.
+#[derive(Debug, Error, PartialEq)]
+pub enum RenderError {
+    /// The plan has no steps.
+    #[error("the plan has no steps")]
+    EmptyPlan,
+    /// Plan and instance disagree on the number of agents.
+    #[error("the plan has {plan} agents, the instance {instance}")]
+    AgentCount {
+        /// Agents of the plan.
+        plan: usize,
+        /// Agents of the instance.
+        instance: usize,
+    },
+    /// The choices are not a whole number of steps.
+    #[error("{len} low-level choices are not a whole number of steps of {n_agents} agents")]
+    Choices {
+        /// Choices given.
+        len: usize,
+        /// Agents per step.
+        n_agents: usize,
+    },
+    /// The step asked for is past the plan's last step.
+    #[error("step {step} is past the plan's last step {last}")]
+    Step {
+        /// The step asked for.
+        step: usize,
+        /// The plan's last step.
+        last: usize,
+    },
+    /// Frames per second that are not a positive number.
+    #[error("frames per second {0} must be a positive number")]
+    Fps(f64),
+    /// A hold that is not a non-negative number of seconds.
+    #[error("hold {0} s must be a non-negative number of seconds")]
+    Hold(f64),
+    /// An id prefix with characters other than ASCII letters, digits, `-` and `_`.
+    #[error("id prefix {0:?} may hold only ASCII letters, digits, - and _")]
+    IdPrefix(String),
+    /// The picture is too large to rasterise.
+    #[error("a {0}x{1} picture is too large to rasterise")]
+    TooLarge(u32, u32),
+    /// The rasteriser or an encoder failed (a bug: the SVG is ours).
+    #[error("rasterising: {0}")]
+    Raster(String),
+}
+
+/// The picture formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Animated SVG (SMIL), one self-contained file.
+    Svg,
+    /// Animated GIF, looping.
+    Gif,
+    /// PNG of one step.
+    Png,
+}
+
+impl Format {
+    /// The format a file name's extension names (`.svg`, `.gif`, `.png`, any case).
+    pub fn from_extension(ext: &str) -> Option<Format> {
+        match ext.to_ascii_lowercase().as_str() {
+            "svg" => Some(Format::Svg),
+            "gif" => Some(Format::Gif),
+            "png" => Some(Format::Png),
+            _ => None,
+        }
+    }
+}
+
+/// The picture of `scene` in `format`: the animation for SVG and GIF, or with `step` the
+/// still of that step (an SVG or PNG; a GIF of one frame); a PNG without `step` shows the
+/// last step.
+///
+/// # Errors
+/// See [`RenderError`].
+pub fn render(
+    scene: &Scene<'_>,
+    options: &Options,
+    format: Format,
+    step: Option<usize>,
+) -> Result<Vec<u8>, RenderError> {
+    let last = scene.plan.horizon();
+    match (format, step) {
+        (Format::Svg, None) => animated_svg(scene, options).map(String::into_bytes),
+        (Format::Svg, Some(step)) => still_svg(scene, options, step).map(String::into_bytes),
+        (Format::Png, step) => png(scene, options, step.unwrap_or(last)),
+        (Format::Gif, None) => gif(scene, options),
+        (Format::Gif, Some(step)) => {
+            let layout = still_layout(scene, options, step)?;
+            raster::gif(scene, &layout, options, Some(step))
+        }
+    }
+}
+
+/// The animated SVG of `scene`.
+///
+/// # Errors
+/// See [`RenderError`].
+pub fn animated_svg(scene: &Scene<'_>, options: &Options) -> Result<String, RenderError> {
+    let layout = Layout::of(scene, options, options.max_frames)?;
+    let slots = animation_slots(&layout, options);
+    let mode = svg::Mode::Animate { slots, fps: options.fps };
+    Ok(svg::document(scene, &layout, options, mode, svg::Edges::Smooth))
+}
+
+/// Frame slots of an animation: its frames and the hold of the last one.
+fn animation_slots(layout: &Layout, options: &Options) -> usize {
+    layout.frames.len() + (options.hold_s * options.fps).round() as usize
+}
+
+/// The SVG still of step `step` of `scene`.
+///
+/// # Errors
+/// See [`RenderError`].
+pub fn still_svg(scene: &Scene<'_>, options: &Options, step: usize) -> Result<String, RenderError> {
+    let layout = still_layout(scene, options, step)?;
+    let mode = svg::Mode::Frame(step);
+    Ok(svg::document(scene, &layout, options, mode, svg::Edges::Smooth))
+}
+
+/// The PNG of step `step` of `scene`.
+///
+/// # Errors
+/// See [`RenderError`].
+pub fn png(scene: &Scene<'_>, options: &Options, step: usize) -> Result<Vec<u8>, RenderError> {
+    let layout = still_layout(scene, options, step)?;
+    raster::png(scene, &layout, options, step)
+}
+
+/// The animated GIF of `scene`, at most [`GIF_MAX_FRAMES`] frames.
+///
+/// # Errors
+/// See [`RenderError`].
+pub fn gif(scene: &Scene<'_>, options: &Options) -> Result<Vec<u8>, RenderError> {
+    let layout = Layout::of(scene, options, options.max_frames.min(GIF_MAX_FRAMES))?;
+    raster::gif(scene, &layout, options, None)
+}
+
+/// A layout whose frames are every step, so that frame `step` is step `step`.
+fn still_layout(scene: &Scene<'_>, options: &Options, step: usize) -> Result<Layout, RenderError> {
+    let last = scene.plan.horizon();
+    if step > last {
+        return Err(RenderError::Step { step, last });
+    }
+    Layout::of(scene, options, scene.plan.n_steps().max(2))
+}
