@@ -49,7 +49,10 @@ fn chromium() -> Option<&'static str> {
     });
     if found.is_none() {
         assert!(std::env::var_os("CI").is_none(), "CI needs chromium for the demo page check");
-        eprintln!("chromium is not installed: the demo page is not opened in a browser");
+        #[allow(clippy::print_stderr, reason = "says why the browser check is skipped")]
+        {
+            eprintln!("chromium is not installed: the demo page is not opened in a browser");
+        }
     }
     found
 }
