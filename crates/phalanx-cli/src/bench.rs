@@ -6,9 +6,12 @@
 //!   front beside joint-state A*'s exact one);
 //! - `bench scaling`: runtime and success against map side and team size;
 //! - `bench movingai`: real maps, a formation and its translated goals placed on each
-//!   (`phalanx_gen::formation_on_map`).
+//!   (`phalanx_gen::formation_on_map`);
+//! - `bench files`: given instance files, one case each.
 //!
-//! Methods are named `NAME[:PARAM]`: `cbs`, `ecbs[:W]` (suboptimality bound, default 1.2),
+//! Methods are named `NAME[:PARAM]`: `cbs`, `cbs:FLAGS` (the ablations: `plain`, exactly the
+//! improvements named, `pc+bp+rect+target+cg+cat`, or all but some, `no-cat+no-bp`),
+//! `ecbs[:W]` (suboptimality bound, default 1.2),
 //! `swarm`, `astar`, `jsa` (formation first, then makespan) or `jsa:W` (minimises
 //! `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the scripted rule, closing up above
 //! `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`, default 1). Joint-state A* runs on maps
@@ -50,6 +53,22 @@ pub(crate) enum BenchCmd {
     /// Real maps nobody here drew (MovingAI `.map` files), a formation and its translated
     /// goals placed on each.
     Movingai(MovingAiArgs),
+    /// Given instance files (libMultiRobotPlanning `.yaml` or MovingAI `.scen`), one case
+    /// each, every method on them.
+    Files(FilesArgs),
+}
+
+/// The flags of `bench files`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct FilesArgs {
+    /// The instance files.
+    #[arg(required = true)]
+    instances: Vec<PathBuf>,
+    /// Use only the first N agents of each file.
+    #[arg(long, value_name = "N")]
+    agents: Option<usize>,
+    #[command(flatten)]
+    common: BenchArgs,
 }
 
 /// The flags of `bench movingai`.
@@ -80,6 +99,10 @@ pub(crate) struct ScalingArgs {
     /// Obstacle density.
     #[arg(long, default_value_t = 0.15, value_parser = util::fraction)]
     density: f64,
+    /// Random single-cell obstacles and random starts and goals (classic MAPF, no
+    /// formation) instead of the paper's generator.
+    #[arg(long)]
+    random_obstacles: bool,
 }
 
 /// The flags of every benchmark.
@@ -123,8 +146,19 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
         BenchCmd::Table2(args) => ("table2", args, None),
         BenchCmd::Pareto(args) => ("pareto", args, None),
         BenchCmd::Scaling(s) => {
-            let grid = (s.sides, s.agents, s.density);
+            let grid = (s.sides, s.agents, s.density, s.random_obstacles);
             ("scaling", s.common, Some(grid))
+        }
+        BenchCmd::Files(f) => {
+            let cases = f
+                .instances
+                .iter()
+                .map(|path| {
+                    let named = util::read_instance(path, f.agents)?;
+                    Ok(Case::fixed(&crate::render::file_name(path), named.instance))
+                })
+                .collect::<anyhow::Result<Vec<Case>>>()?;
+            return run_cases("files", f.common, cases);
         }
         BenchCmd::Movingai(m) => {
             let cases = map_cases(&m.maps_from, m.agents)?;
@@ -135,17 +169,20 @@ pub(crate) fn run(cmd: BenchCmd) -> anyhow::Result<ExitCode> {
     if name == "pareto" {
         cases.retain(|c| c.paper.is_some_and(|p| p.side == 20));
     }
-    if let Some((sides, agents, density)) = &scaling {
+    if let Some((sides, agents, density, random)) = &scaling {
         anyhow::ensure!(!sides.is_empty() && !agents.is_empty(), "--sides and --agents name none");
         let quick = args.quick;
         let agents = if quick { &agents[..1] } else { &agents[..] };
         cases = agents
             .iter()
             .flat_map(|&k| {
-                sides
-                    .iter()
-                    .filter(move |&&side| !quick || side <= 64)
-                    .map(move |&side| Case::new(side, k, *density, None))
+                sides.iter().filter(move |&&side| !quick || side <= 64).map(move |&side| {
+                    if *random {
+                        Case::random_mapf(side, k, *density)
+                    } else {
+                        Case::new(side, k, *density, None)
+                    }
+                })
             })
             .collect();
     }
@@ -281,6 +318,39 @@ fn map_cases(sources: &[PathBuf], agents: usize) -> anyhow::Result<Vec<Case>> {
         .collect()
 }
 
+/// The CBS improvements by their names in `cbs:FLAGS`.
+const CBS_FLAGS: [&str; 6] = ["pc", "bp", "rect", "target", "cg", "cat"];
+
+/// The CBS configuration of `cbs[:FLAGS]` (`spec`): without flags the default (every
+/// improvement), `cbs:plain` none, `cbs:pc+rect` exactly those named, `cbs:no-cat+no-bp`
+/// every one but those (the ablations of docs/cbs.md).
+fn cbs_variant(spec: &str, param: Option<&str>) -> anyhow::Result<cbs::CbsConfig> {
+    let Some(param) = param else { return Ok(cbs::CbsConfig::default()) };
+    let tokens: Vec<&str> = if param == "plain" { Vec::new() } else { param.split('+').collect() };
+    let without = tokens.first().is_some_and(|t| t.starts_with("no-"));
+    let mut on = [without; 6];
+    for token in &tokens {
+        let name = if without { token.strip_prefix("no-") } else { Some(*token) };
+        let slot = name.and_then(|name| CBS_FLAGS.iter().position(|f| *f == name));
+        let Some(slot) = slot else {
+            anyhow::bail!(
+                "method {spec}: {token} is not a CBS flag (plain, or {} joined by +, each \
+                 with no- to leave it out)",
+                CBS_FLAGS.join(", ")
+            );
+        };
+        on[slot] = !without;
+    }
+    Ok(cbs::CbsConfig {
+        prioritize_conflicts: on[0],
+        bypass: on[1],
+        rectangle_reasoning: on[2],
+        target_reasoning: on[3],
+        cg_heuristic: on[4],
+        conflict_avoidance: on[5],
+    })
+}
+
 /// The meta policy's file: `dir`'s, else the shipped one if there is one.
 pub(crate) fn meta_file(dir: Option<&Path>) -> anyhow::Result<Option<PathBuf>> {
     Ok(match dir {
@@ -291,7 +361,9 @@ pub(crate) fn meta_file(dir: Option<&Path>) -> anyhow::Result<Option<PathBuf>> {
 
 /// The methods run when `--methods` is not given.
 fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
-    let mut names: Vec<String> = if benchmark == "scaling" || benchmark == "movingai" {
+    let mut names: Vec<String> = if benchmark == "files" {
+        ["cbs", "ecbs", "swarm", "pathfinding", "leader"].map(str::to_owned).to_vec()
+    } else if benchmark == "scaling" || benchmark == "movingai" {
         ["cbs", "swarm", "pathfinding", "leader"].map(str::to_owned).to_vec()
     } else if benchmark == "pareto" {
         ["pathfinding", "leader", "leader:1.5", "leader:0.7", "leader:0.3"]
@@ -341,7 +413,7 @@ pub(crate) fn method(
         Ok(())
     };
     match name {
-        "cbs" => no_param().and_then(|()| planner(PlannerChoice::Cbs(cbs::CbsConfig::default()))),
+        "cbs" => planner(PlannerChoice::Cbs(cbs_variant(spec, param)?)),
         "astar" => no_param()
             .and_then(|()| planner(PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()))),
         "swarm" => {
@@ -402,9 +474,38 @@ fn write_outputs(
     let tmp = out.join(format!(".{name}.svg.tmp"));
     match name {
         "pareto" => report::plot_pareto(cases, methods, cells, &tmp)?,
-        "movingai" => report::plot_table2(cases, methods, cells, &tmp)?,
+        "movingai" | "files" => report::plot_table2(cases, methods, cells, &tmp)?,
         "scaling" => report::plot_scaling(cases, methods, cells, &tmp)?,
         _ => report::plot_table2(cases, methods, cells, &tmp)?,
     }
     std::fs::rename(&tmp, &svg).with_context(|| format!("writing {}", svg.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cbs_variants_name_the_improvements_on() {
+        let on = |spec: &str| {
+            let param = spec.split_once(':').map(|(_, p)| p);
+            let c = cbs_variant(spec, param).unwrap();
+            [
+                c.prioritize_conflicts,
+                c.bypass,
+                c.rectangle_reasoning,
+                c.target_reasoning,
+                c.cg_heuristic,
+                c.conflict_avoidance,
+            ]
+        };
+        assert_eq!(on("cbs"), [true; 6]);
+        assert_eq!(on("cbs:plain"), [false; 6]);
+        assert_eq!(on("cbs:pc+rect"), [true, false, true, false, false, false]);
+        assert_eq!(on("cbs:no-cat+no-bp"), [true, false, true, true, true, false]);
+        let err = cbs_variant("cbs:pc+fast", Some("pc+fast")).unwrap_err().to_string();
+        assert!(err.contains("fast is not a CBS flag"), "{err}");
+        // A list either names what is on or what is off.
+        assert!(cbs_variant("cbs:pc+no-cat", Some("pc+no-cat")).is_err());
+    }
 }

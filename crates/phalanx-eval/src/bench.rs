@@ -13,7 +13,8 @@ use crate::{BenchError, Case, Method, Settings};
 /// What to run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Plan {
-    /// Instances per case (indices `0..maps` of each case's evaluation stream).
+    /// Instances per case (indices `0..maps` of each case's evaluation stream; a case of
+    /// fixed instances has at most its own).
     pub maps: u64,
     /// The evaluation stream's seed.
     pub seed: u64,
@@ -31,7 +32,7 @@ pub fn pending(
 ) -> Vec<(usize, u64, usize)> {
     let mut res = Vec::new();
     for (c, case) in cases.iter().enumerate() {
-        for index in 0..plan.maps {
+        for index in 0..case.instance_count().map_or(plan.maps, |n| n.min(plan.maps)) {
             for (m, method) in methods.iter().enumerate() {
                 let key = RunKey(case.label.clone(), index, method.name.clone());
                 let fits = method.max_side.is_none_or(|max| case.side <= max);

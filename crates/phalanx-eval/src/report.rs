@@ -102,7 +102,7 @@ pub fn markdown(cases: &[Case], cells: &[Cell]) -> String {
                 (Some(p), "cbs") => format!("| | | {}", p.cbs_runtime),
                 _ => " | | |".to_owned(),
             };
-            let map = if case.map.is_some() {
+            let map = if !matches!(case.source, crate::suite::Source::Generated) {
                 format!("{} ({}²)", case.label, case.side)
             } else if case.side == case.paper.map_or(case.side, |p| p.side) {
                 format!("{}²", case.side)

@@ -77,16 +77,56 @@ pub struct Case {
     pub density: f64,
     /// The paper's row (Table II cases only).
     pub paper: Option<PaperRow>,
-    /// A given map (a MovingAI map) instead of generated ones: each instance places a
-    /// formation and its translated goals on it (`phalanx_gen::formation_on_map`).
-    pub map: Option<Arc<Grid>>,
+    /// Where the case's instances come from.
+    pub source: Source,
+}
+
+/// Where a case's instances come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Source {
+    /// The paper's generator (SPEC §2) on the evaluation stream.
+    Generated,
+    /// A given map (a MovingAI map): each instance places a formation and its translated
+    /// goals on it (`phalanx_gen::formation_on_map`).
+    OnMap(Arc<Grid>),
+    /// Random single-cell obstacles at the case's density with random distinct starts and
+    /// goals (the MovingAI "random" maps' style; no formation), drawn from the instance's
+    /// seed (`phalanx_gen::random_mapf_instance`).
+    RandomMapf,
+    /// One given instance (a file): the case has this one instance.
+    Fixed(Arc<Instance>),
 }
 
 impl Case {
     /// A case of `side`² maps with `agents` agents at `density`.
     pub fn new(side: u32, agents: usize, density: f64, paper: Option<PaperRow>) -> Case {
         let label = format!("{side}x{agents}@{density}");
-        Case { label, side, agents, density, paper, map: None }
+        Case { label, side, agents, density, paper, source: Source::Generated }
+    }
+
+    /// A case of `side`² maps with random single-cell obstacles at `density` and `agents`
+    /// random starts and goals ([`Source::RandomMapf`]).
+    pub fn random_mapf(side: u32, agents: usize, density: f64) -> Case {
+        let label = format!("random {side}x{agents}@{density}");
+        Case { label, side, agents, density, paper: None, source: Source::RandomMapf }
+    }
+
+    /// The case of one given instance named `name` (a file's name).
+    pub fn fixed(name: &str, instance: Instance) -> Case {
+        let grid = instance.grid();
+        let side = grid.width().max(grid.height());
+        let density = (grid.density() * 1000.0).round() / 1000.0;
+        let (label, agents) = (name.to_owned(), instance.n_agents());
+        let source = Source::Fixed(Arc::new(instance));
+        Case { label, side, agents, density, paper: None, source }
+    }
+
+    /// The number of instances the case has, if it has a fixed number.
+    pub fn instance_count(&self) -> Option<u64> {
+        match self.source {
+            Source::Fixed(_) => Some(1),
+            _ => None,
+        }
     }
 
     /// A case on the given map named `name`, teams of `agents`.
@@ -94,7 +134,7 @@ impl Case {
         let side = grid.width().max(grid.height());
         let density = (grid.density() * 1000.0).round() / 1000.0;
         let label = format!("{name} x{agents}");
-        Case { label, side, agents, density, paper: None, map: Some(Arc::new(grid)) }
+        Case { label, side, agents, density, paper: None, source: Source::OnMap(Arc::new(grid)) }
     }
 
     /// The rows of Table II; `quick`: on [`QUICK_SIDE`]² maps (labels keep the row and say
@@ -119,13 +159,35 @@ impl Case {
     /// # Errors
     /// If the generator cannot place the team.
     pub fn instance(&self, seed: u64, index: u64) -> Result<(Instance, u64), BenchError> {
-        if let Some(grid) = &self.map {
-            let map_seed = eval_seed(seed, index);
-            let r = phalanx_gen::region_side(self.side);
-            let mut rng = ChaCha8Rng::seed_from_u64(map_seed);
-            let instance = phalanx_gen::formation_on_map(grid, self.agents, r, &mut rng)
-                .ok_or_else(|| BenchError::Placement { case: self.label.clone(), index })?;
-            return Ok((instance, map_seed));
+        let placement = || BenchError::Placement { case: self.label.clone(), index };
+        match &self.source {
+            Source::Generated => {}
+            Source::OnMap(grid) => {
+                let map_seed = eval_seed(seed, index);
+                let r = phalanx_gen::region_side(self.side);
+                let mut rng = ChaCha8Rng::seed_from_u64(map_seed);
+                let instance = phalanx_gen::formation_on_map(grid, self.agents, r, &mut rng)
+                    .ok_or_else(placement)?;
+                return Ok((instance, map_seed));
+            }
+            Source::RandomMapf => {
+                let map_seed = eval_seed(seed, index);
+                let mut rng = ChaCha8Rng::seed_from_u64(map_seed);
+                // A draw without room for the agents is redrawn from the same stream.
+                let instance = (0..16)
+                    .find_map(|_| {
+                        phalanx_gen::random_mapf_instance(
+                            self.side,
+                            self.side,
+                            self.density,
+                            self.agents,
+                            &mut rng,
+                        )
+                    })
+                    .ok_or_else(placement)?;
+                return Ok((instance, map_seed));
+            }
+            Source::Fixed(instance) => return Ok(((**instance).clone(), 0)),
         }
         let maps = EvalMaps::new(EvalConfig {
             size: self.side,

@@ -471,4 +471,17 @@ fn bench_quick_runs_every_row_and_method_and_resumes() {
     // Other settings are refused on resume.
     let (_, stderr) = check(&phalanx(d, &[&args[..], &["--resume", "--seed", "5"]].concat()), 2);
     assert!(stderr.contains("other settings"), "{stderr}");
+    // Given instance files, with CBS ablations: the crossing case solved at its optimum
+    // with and without the improvements, one run each whatever --maps says.
+    let case = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../phalanx-plan/tests/data/cbs-timeout-64x64-4agents.yaml");
+    let files =
+        ["bench", "files", "--out", "f", "--time-limit", "10", "--methods", "cbs,cbs:plain"];
+    let (stdout, _) = check(&phalanx(d, &[&files[..], &[case.to_str().unwrap()]].concat()), 0);
+    assert!(stdout.contains("| cbs-timeout-64x64-4agents.yaml (64²) | 4 |"), "{stdout}");
+    let runs = std::fs::read_to_string(d.join("f/runs.jsonl")).unwrap();
+    assert_eq!(runs.lines().count(), 2);
+    assert!(runs.lines().all(|l| l.contains("\"sum_of_costs\":480")), "{runs}");
+    let (_, stderr) = check(&phalanx(d, &["bench", "files", "--methods", "cbs:fast", "x.yaml"]), 2);
+    assert!(stderr.contains("x.yaml") || stderr.contains("fast"), "{stderr}");
 }
