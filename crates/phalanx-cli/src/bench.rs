@@ -1,7 +1,7 @@
 //! `phalanx bench`: every method on the same fresh instances, scored by the one validator;
 //! the work is `phalanx_eval`.
 //!
-//! - `bench table2`: the seven rows of the paper's Table II (SPEC §8);
+//! - `bench table2`: the seven rows of the paper's Table II (docs/spec.md §8);
 //! - `bench pareto`: the 20² rows of Table II, with the methods' weight sweeps (the learned
 //!   front beside joint-state A*'s exact one);
 //! - `bench scaling`: runtime and success against map side and team size;
@@ -43,7 +43,7 @@ use crate::{meta, models, util};
 /// The benchmarks.
 #[derive(Debug, clap::Subcommand)]
 pub(crate) enum BenchCmd {
-    /// The rows of the paper's Table II (SPEC §8), every method on the same instances.
+    /// The rows of the paper's Table II (docs/spec.md §8), every method on the same instances.
     Table2(BenchArgs),
     /// The Pareto front on the 20² rows: weight sweeps of the methods, with joint-state A*'s
     /// exact front.

@@ -2,7 +2,7 @@
 //! (the evaluation stream, never the training pool) and print success rate, makespan,
 //! collisions and formation loss; the work is `phalanx_rl::evaluate`.
 //!
-//! Path finding runs on generated instances (SPEC §2: start and goal regions in opposite
+//! Path finding runs on generated instances (docs/spec.md §2: start and goal regions in opposite
 //! corners). Formation runs, by default, in the formation-training environment on fresh maps:
 //! agents placed at random within each other's view, a random target formation, success when
 //! `L_f = 0` within `--max-steps` (default 50).
@@ -93,7 +93,7 @@ pub(crate) struct EvalCmd {
     /// Step limit (default: 3 × side for path finding, 50 for formation).
     #[arg(long, value_name = "N")]
     max_steps: Option<u32>,
-    /// Test-time rollouts per instance (SPEC §6): the first greedy, the others with random
+    /// Test-time rollouts per instance (docs/spec.md §6): the first greedy, the others with random
     /// actions (--random-prob); the best one counts and the time covers all of them.
     #[arg(long, default_value_t = 1)]
     rollouts: usize,

@@ -40,7 +40,7 @@ struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Generate an instance (SPEC §2) and write it as .yaml, or .scen with its .map beside it.
+    /// Generate an instance (docs/spec.md §2) and write it as .yaml, or .scen with its .map beside it.
     Gen(generate::Args),
     /// Describe an instance: size, density, agents, formation, shortest distances.
     Info(info::Args),

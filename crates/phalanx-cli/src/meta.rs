@@ -116,7 +116,7 @@ impl LeaderArgs {
     }
 }
 
-/// The test-time rollouts of the learned methods (`solve`, `bench`; SPEC §6).
+/// The test-time rollouts of the learned methods (`solve`, `bench`; docs/spec.md §6).
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct RolloutArgs {
     /// Learned policies: rollouts per instance, the first greedy, the others with random

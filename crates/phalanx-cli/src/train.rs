@@ -1,5 +1,5 @@
 //! `phalanx train pathfinding|formation|meta|e2e`: trains a low-level policy (VDN + double DQN,
-//! SPEC §6) on the training pool, or the meta policy over the two frozen ones (`phalanx_rl::
+//! docs/spec.md §6) on the training pool, or the meta policy over the two frozen ones (`phalanx_rl::
 //! MetaEnv`) or the end-to-end baseline on the meta reward, with a progress bar on stderr, metrics appended as JSON lines to
 //! `DIR/metrics.jsonl` (one `{"name", "step", "value"}` object per value, names of
 //! `phalanx_rl::metrics`), an atomic checkpoint `DIR/checkpoint` with the policy file
@@ -48,7 +48,7 @@ pub(crate) enum TaskName {
     /// The meta policy: choose path finding or formation per agent and step, over the frozen
     /// low-level policies, on the meta reward (Table I) weighted by w_f (Eq. 14).
     Meta,
-    /// The end-to-end VDN baseline (SPEC §7): the five moves on the meta reward with
+    /// The end-to-end VDN baseline (docs/spec.md §7): the five moves on the meta reward with
     /// formation clipping and the same w_f, no hierarchy.
     E2e,
 }

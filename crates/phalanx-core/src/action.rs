@@ -1,4 +1,4 @@
-//! The five actions of the specification (SPEC §1): `Up` is `y + 1`.
+//! The five actions of the specification (docs/spec.md §1): `Up` is `y + 1`.
 
 use std::fmt;
 

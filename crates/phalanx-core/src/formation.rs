@@ -1,4 +1,4 @@
-//! The formation loss `L_f` (SPEC §3): the distance between a joint position and the desired
+//! The formation loss `L_f` (docs/spec.md §3): the distance between a joint position and the desired
 //! formation (the goals' layout) after the best rotation and translation, without scaling
 //! or reflection (2-D Procrustes, matched by agent index).
 

@@ -61,7 +61,7 @@ impl Grid {
         self.height
     }
 
-    /// The longer side, `max(width, height)`: the "map side" of the metrics (SPEC §3).
+    /// The longer side, `max(width, height)`: the "map side" of the metrics (docs/spec.md §3).
     #[inline]
     pub fn side(&self) -> u32 {
         self.width.max(self.height)

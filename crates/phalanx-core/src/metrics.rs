@@ -1,4 +1,4 @@
-//! Metrics of a plan or an episode (SPEC §3).
+//! Metrics of a plan or an episode (docs/spec.md §3).
 
 use crate::{Cell, Instance, Plan, formation_loss};
 

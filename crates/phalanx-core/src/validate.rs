@@ -15,7 +15,7 @@ pub struct Violation {
     pub kind: ViolationKind,
 }
 
-/// The rules of a valid plan (SPEC §1).
+/// The rules of a valid plan (docs/spec.md §1).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ViolationKind {
     /// The plan is for another number of agents.

@@ -5,7 +5,7 @@ use phalanx_gen::GenError;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-/// Which reward of SPEC §5 (the paper's Table I) the environment pays, which action mask it
+/// Which reward of docs/spec.md §5 (the paper's Table I) the environment pays, which action mask it
 /// writes and when an episode is terminated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -20,7 +20,7 @@ pub enum Task {
     Meta,
 }
 
-/// Which moves an agent may choose (SPEC §5 action clipping).
+/// Which moves an agent may choose (docs/spec.md §5 action clipping).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Clip {
@@ -35,7 +35,7 @@ pub enum Clip {
 impl Task {
     /// The action clipping of the task: path finding for [`Task::PathFinding`], formation
     /// for [`Task::Formation`] and [`Task::Meta`] (the end-to-end baselines clip as the
-    /// formation policy does, SPEC §7; the hierarchy writes its low-level policies' masks).
+    /// formation policy does, docs/spec.md §7; the hierarchy writes its low-level policies' masks).
     pub fn clip(self) -> Clip {
         match self {
             Task::PathFinding => Clip::PathFinding,
@@ -43,7 +43,7 @@ impl Task {
         }
     }
 
-    /// The leader ordering of the task's policy (SPEC §6); the meta task's caller picks
+    /// The leader ordering of the task's policy (docs/spec.md §6); the meta task's caller picks
     /// the rule of the low-level policy that runs.
     pub fn leader_rule(self) -> LeaderRule {
         match self {
@@ -53,7 +53,7 @@ impl Task {
     }
 }
 
-/// The order in which agents act within a step (SPEC §6). Ties are broken by agent index.
+/// The order in which agents act within a step (docs/spec.md §6). Ties are broken by agent index.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum LeaderRule {
@@ -72,7 +72,7 @@ pub struct EnvConfig {
     pub fov: u32,
     /// The reward task. Default: path finding.
     pub task: Task,
-    /// The meta task's formation weight `w_f` (SPEC §6, Eq. 14); unused by the other tasks.
+    /// The meta task's formation weight `w_f` (docs/spec.md §6, Eq. 14); unused by the other tasks.
     /// Default 1.
     pub formation_weight: f64,
     /// Steps after which an episode is truncated; `None` means `3 × map side` (the paper).

@@ -1,6 +1,6 @@
-//! One episode: the joint state, the step with collision resolution (SPEC §1), rewards and
-//! termination (SPEC §5), observations written into flat buffers (SPEC §4) and leader-ordered
-//! sequential acting (SPEC §6).
+//! One episode: the joint state, the step with collision resolution (docs/spec.md §1), rewards and
+//! termination (docs/spec.md §5), observations written into flat buffers (docs/spec.md §4) and leader-ordered
+//! sequential acting (docs/spec.md §6).
 //!
 //! Everything the step touches is preallocated on reset: the map is stored padded by
 //! `R = F / 2` blocked cells on every side, so windows and neighbours need no bounds checks;
@@ -405,7 +405,7 @@ impl Env {
     /// Advances the episode by one joint action (one per agent, in agent order).
     ///
     /// Moves into blocked or outside cells, into a cell another agent ends in, and swaps are
-    /// cancelled, to a fixed point (SPEC §1); following a moving agent is allowed.
+    /// cancelled, to a fixed point (docs/spec.md §1); following a moving agent is allowed.
     ///
     /// # Panics
     /// If the episode has ended or `actions` has another length than the agent count.
@@ -667,7 +667,7 @@ impl Env {
         out[4] = true;
     }
 
-    /// Computes the acting order of this step under `rule` (SPEC §6; ties by agent index)
+    /// Computes the acting order of this step under `rule` (docs/spec.md §6; ties by agent index)
     /// and forgets any actions chosen so far; returns the order.
     pub fn begin_turns(&mut self, rule: LeaderRule) -> &[u16] {
         let n = self.pos.len();

@@ -1,4 +1,4 @@
-//! The formation-training environment's episodes (SPEC §5): agents placed at random, each
+//! The formation-training environment's episodes (docs/spec.md §5): agents placed at random, each
 //! within the field of view of another, and a random target formation.
 
 use phalanx_core::{Cell, Grid, Instance, formation_loss};

@@ -1,4 +1,4 @@
-//! The hierarchy's environment (SPEC §6, the paper's Algorithm 1): the meta task's episode with
+//! The hierarchy's environment (docs/spec.md §6, the paper's Algorithm 1): the meta task's episode with
 //! the three observations the hierarchy reads each step.
 //!
 //! Each step:

@@ -1,10 +1,10 @@
 //! The simulation environment of phalanx: the world every policy is trained and evaluated
 //! in.
 //!
-//! - [`Env`] runs one episode: collision resolution (SPEC §1), observations (SPEC §4, the
+//! - [`Env`] runs one episode: collision resolution (docs/spec.md §1), observations (docs/spec.md §4, the
 //!   encoding is documented in [`obs`] and `docs/observation.md`), rewards, action masks and
-//!   termination of the three tasks (SPEC §5), and leader-ordered sequential acting with
-//!   action messages (SPEC §6).
+//!   termination of the three tasks (docs/spec.md §5), and leader-ordered sequential acting with
+//!   action messages (docs/spec.md §6).
 //! - [`MarlEnv`] is the interface training and evaluation step, with flat observation
 //!   buffers ([`ObsBuffers`]) that become tensors without copies; [`TaskEnv`] is the
 //!   simulator with a task's rewards, clipping and leader order, [`PoolEnv`] the low-level

@@ -5,9 +5,9 @@
 //! A [`MarlEnv`] is a cooperative multi-agent environment with one team reward per step.
 //! Observations travel in flat `f32` buffers ([`ObsBuffers`]) that the environment overwrites in
 //! place on `reset` and `step`, so a batched simulator can fill them without allocating.
-//! Besides the observations the environment supplies, per agent, the action mask (SPEC §5
+//! Besides the observations the environment supplies, per agent, the action mask (docs/spec.md §5
 //! action clipping: a masked action is never chosen and never bootstrapped from) and the
-//! leader order in which agents act within the step (SPEC §6: the leader first).
+//! leader order in which agents act within the step (docs/spec.md §6: the leader first).
 //! Acting is sequential: the agent at rank `k` sees the actions chosen by ranks `0..k` as its
 //! message, but the environment receives the joint action at once.
 
@@ -100,7 +100,7 @@ impl ObsBuffers {
 /// What one step returns.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepOut {
-    /// Team reward (sum of the agents' rewards, SPEC §5).
+    /// Team reward (sum of the agents' rewards, docs/spec.md §5).
     pub team_reward: f32,
     /// The episode ended in an absorbing state (goal or formation reached): no bootstrap.
     pub terminated: bool,

@@ -1,4 +1,4 @@
-//! The observation encoding (SPEC §4); the buffers it is written into are
+//! The observation encoding (docs/spec.md §4); the buffers it is written into are
 //! [`crate::ObsBuffers`].
 //!
 //! | part | shape | value |

@@ -1,4 +1,4 @@
-//! Training and evaluation maps (SPEC §5), kept apart by construction.
+//! Training and evaluation maps (docs/spec.md §5), kept apart by construction.
 //!
 //! A [`TrainPool`] holds 100 (by default) 32×32 maps of density 0.15 generated from seeds of
 //! the *training* stream; [`EvalMaps`] generates instances from seeds of the *evaluation*
@@ -40,7 +40,7 @@ pub fn eval_seed(base: u64, index: u64) -> u64 {
     splitmix64(splitmix64(EVAL_DOMAIN ^ base) ^ index) | EVAL_BIT
 }
 
-/// Settings of the training pool. Defaults are the paper's (SPEC §5).
+/// Settings of the training pool. Defaults are the paper's (docs/spec.md §5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PoolConfig {
@@ -109,7 +109,7 @@ impl TrainPool {
 
     /// A path-finding episode: a map drawn uniformly, `n_agents` distinct cells of the
     /// start region drawn uniformly, the goals their translate into the goal region (as
-    /// the generator does; SPEC §2).
+    /// the generator does; docs/spec.md §2).
     ///
     /// # Panics
     /// If the pool is empty or `n_agents` exceeds the start region's cells.

@@ -1,6 +1,6 @@
 //! The simulator with a task's rewards, clipping and leader order writing [`ObsBuffers`]
 //! ([`TaskEnv`]), and the [`MarlEnv`] the low-level policies are trained in ([`PoolEnv`]: the
-//! path-finding and formation-training environments of SPEC §5, §6, one type for every task).
+//! path-finding and formation-training environments of docs/spec.md §5, §6, one type for every task).
 //!
 //! Each reset draws a map from the training pool ([`TrainPool`], generated once) and a fresh
 //! instance from a `ChaCha8Rng` seeded with the reset's seed: for [`Task::Formation`] a

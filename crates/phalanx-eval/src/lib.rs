@@ -5,7 +5,7 @@
 //! - [`bench`]: the runs of a benchmark, one at a time, in a fixed order;
 //! - [`Method`]: a named solver (a classical planner with its budget, the path-finding policy
 //!   alone, or a hierarchy over the low level) run on one instance at a time;
-//! - [`suite`]: the cases of a benchmark (the rows of the paper's Table II, SPEC §8; the 20²
+//! - [`suite`]: the cases of a benchmark (the rows of the paper's Table II, docs/spec.md §8; the 20²
 //!   rows of the Pareto front) and their instances from the evaluation stream;
 //! - [`runs`]: one [`RunRecord`] per (case, instance, method), appended to `runs.jsonl` as
 //!   each finishes, so a killed benchmark resumes where it stopped; `runs.csv`;

@@ -52,7 +52,7 @@ pub struct Solved {
 pub struct Settings {
     /// Wall-clock limit of a planner's run, in seconds.
     pub time_limit_s: f64,
-    /// Test-time rollouts of the learned methods (SPEC §6); their runtime covers all of them.
+    /// Test-time rollouts of the learned methods (docs/spec.md §6); their runtime covers all of them.
     pub rollouts: Rollouts,
 }
 
@@ -115,7 +115,7 @@ impl Method {
 }
 
 /// The learned policies' environment: their field of view, the task's rewards and clipping,
-/// the step limit of SPEC §3 (`3 × side`).
+/// the step limit of docs/spec.md §3 (`3 × side`).
 fn env_config(fov: usize, task: Task) -> EnvConfig {
     EnvConfig { fov: fov as u32, task, ..EnvConfig::default() }
 }

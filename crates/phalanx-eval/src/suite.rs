@@ -1,7 +1,7 @@
 //! The cases of a benchmark and their instances.
 //!
 //! A case is a kind of instance (map side, team size, obstacle density); its instances are
-//! the first ones of the evaluation stream (`phalanx_env::EvalMaps`, SPEC §2 and §5: freshly
+//! the first ones of the evaluation stream (`phalanx_env::EvalMaps`, docs/spec.md §2 and §5: freshly
 //! generated, never the training pool), so every method sees the same instances and a
 //! seed names them all.
 
@@ -14,7 +14,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::BenchError;
 
-/// One row of the paper's Table II (SPEC §8) with the paper's figures for its method and
+/// One row of the paper's Table II (docs/spec.md §8) with the paper's figures for its method and
 /// for CBS.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PaperRow {
@@ -36,7 +36,7 @@ pub struct PaperRow {
     pub cbs_runtime: &'static str,
 }
 
-/// The seven rows of Table II (SPEC §8).
+/// The seven rows of Table II (docs/spec.md §8).
 pub const PAPER_ROWS: [PaperRow; 7] = [
     row(20, 3, 0.15, 41.3, 0.5, 1.0, 0.27, "0.002"),
     row(20, 3, 0.05, 34.2, 0.01, 1.0, 0.24, "0.0002"),
@@ -84,7 +84,7 @@ pub struct Case {
 /// Where a case's instances come from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Source {
-    /// The paper's generator (SPEC §2) on the evaluation stream.
+    /// The paper's generator (docs/spec.md §2) on the evaluation stream.
     Generated,
     /// A given map (a MovingAI map): each instance places a formation and its translated
     /// goals on it (`phalanx_gen::formation_on_map`).

@@ -1,4 +1,4 @@
-//! The paper's instance generator (SPEC §2): square maps whose obstacles are straight wall
+//! The paper's instance generator (docs/spec.md §2): square maps whose obstacles are straight wall
 //! segments of at most half the field of view, a start region in the top-left corner and a
 //! goal region in the bottom-right corner kept free, and a formation of `k` distinct cells
 //! in the start region whose translate into the goal region is the goal layout.

@@ -1,7 +1,7 @@
 //! One entry point over every planner of the crate, and the summary the command line prints:
 //! a closed [`PlannerChoice`] (config-driven, no string registry), [`run_planner`], and the
 //! serde-serialisable [`SolveSummary`] (outcome, runtime, search statistics, the validator's
-//! verdict and the plan metrics of SPEC §3).
+//! verdict and the plan metrics of docs/spec.md §3).
 
 use phalanx_core::{Instance, Plan, PlanMetrics, validate};
 
@@ -93,7 +93,7 @@ impl Outcome {
     }
 }
 
-/// The metrics of a returned plan (SPEC §3).
+/// The metrics of a returned plan (docs/spec.md §3).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SummaryMetrics {
     /// Every agent reaches its goal.

@@ -60,7 +60,7 @@ pub struct EvalEpisode {
     pub choices: Option<Vec<u8>>,
 }
 
-/// Test-time rollouts (SPEC §6, the paper's protocol for decentralised methods): each
+/// Test-time rollouts (docs/spec.md §6, the paper's protocol for decentralised methods): each
 /// instance is played `count` times, the first greedily, the others with a random allowed
 /// action taken with probability `epsilon` per agent and step (in the hierarchy: an action
 /// allowed by the agent's chosen low-level policy, the meta choice staying greedy); the best

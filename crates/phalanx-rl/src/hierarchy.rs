@@ -1,4 +1,4 @@
-//! The hierarchy (SPEC §6, the paper's Algorithm 1): a meta policy choosing, per agent and
+//! The hierarchy (docs/spec.md §6, the paper's Algorithm 1): a meta policy choosing, per agent and
 //! step, between the frozen path-finding and formation policies.
 //!
 //! - [`LowLevel`]: the two frozen low-level policies acting together on [`HierEnv`]s: both

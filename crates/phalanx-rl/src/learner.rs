@@ -1,4 +1,4 @@
-//! VDN + double DQN over recurrent, parameter-shared agents (SPEC §6; EPyMARL `q_learner.py`).
+//! VDN + double DQN over recurrent, parameter-shared agents (docs/spec.md §6; EPyMARL `q_learner.py`).
 //!
 //! One update:
 //! 1. sample `B` sequences ([`Replay::sample`]) and run the online network's recurrent pass for

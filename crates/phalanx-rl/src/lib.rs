@@ -1,4 +1,4 @@
-//! Decentralised learned policies for multi-agent path finding in formation (SPEC §6).
+//! Decentralised learned policies for multi-agent path finding in formation (docs/spec.md §6).
 //!
 //! - [`net`]: the recurrent Q-network shared by all agents (encoder, LSTM, head with the action
 //!   message after the LSTM);

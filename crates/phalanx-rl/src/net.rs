@@ -1,4 +1,4 @@
-//! The recurrent Q-network shared by all agents (SPEC §6).
+//! The recurrent Q-network shared by all agents (docs/spec.md §6).
 //!
 //! One agent's pass: observation encoder (conv or MLP over the `C × F × F` channels, plus the
 //! goal vector and the agent-slot one-hot), a stack of LSTM layers, then a small head that takes
@@ -44,9 +44,9 @@ pub enum EncoderConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct QNetConfig {
-    /// Observation channels `C` (SPEC §4: 4).
+    /// Observation channels `C` (docs/spec.md §4: 4).
     pub channels: usize,
-    /// Field of view `F` (odd; SPEC §4: 9).
+    /// Field of view `F` (odd; docs/spec.md §4: 9).
     pub fov: usize,
     /// Length of the environment's vector observation (goal vector: 3).
     pub env_vec: usize,

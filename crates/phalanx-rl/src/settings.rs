@@ -27,7 +27,7 @@ pub enum TrainTask {
     Formation,
     /// The meta policy over the two frozen low-level policies ([`MetaEnv`]).
     Meta,
-    /// The end-to-end VDN baseline (SPEC §7): one network of the five moves on the meta
+    /// The end-to-end VDN baseline (docs/spec.md §7): one network of the five moves on the meta
     /// reward ([`Task::Meta`] on the pool, formation clipping), no hierarchy.
     EndToEnd,
 }
@@ -161,7 +161,7 @@ impl TrainConfig {
     ///   300 000 steps;
     /// - e2e: the meta task's teams, episodes and reward scale with the five moves, one fixed
     ///   multiple (1) of the base weights, and 900 000 steps (three times the meta policy's,
-    ///   SPEC §7).
+    ///   docs/spec.md §7).
     pub fn for_task(task: TrainTask) -> TrainConfig {
         let base = TrainConfig::default();
         match task {

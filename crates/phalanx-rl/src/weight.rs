@@ -4,7 +4,7 @@
 //!
 //! `Σ_{t<T} ΔL_f = L_f(T) − L_f(0)`: the sum telescopes, so each episode contributes the
 //! change of its formation loss over `T` steps. Start states are formation-training
-//! placements (the team scattered within each other's view, a random target layout, SPEC §5)
+//! placements (the team scattered within each other's view, a random target layout, docs/spec.md §5)
 //! on fresh maps of the evaluation stream, where the formation policy is what it was trained
 //! to be. An episode that reaches the formation ends there (`L_f` stays 0). The random policy
 //! takes a uniformly random action among those formation clipping allows. `T` defaults to

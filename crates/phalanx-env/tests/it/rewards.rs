@@ -78,7 +78,7 @@ fn masks_follow_the_clipping() {
     for (task, expected) in [
         (Task::PathFinding, [true, false, false, true, true]),
         (Task::Formation, [true, false, false, true, true]),
-        // The end-to-end baselines clip as formation does (SPEC §7).
+        // The end-to-end baselines clip as formation does (docs/spec.md §7).
         (Task::Meta, [true, false, false, true, true]),
     ] {
         let mut env = env(task);

@@ -1,4 +1,4 @@
-//! Sequential acting: the leader order of SPEC §6, the messages, and the equivalence of
+//! Sequential acting: the leader order of docs/spec.md §6, the messages, and the equivalence of
 //! acting in turn with a joint step.
 
 use phalanx_core::Action::{self, Right, Up, Wait};
