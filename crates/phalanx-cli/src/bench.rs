@@ -14,7 +14,8 @@
 //! `ecbs[:W]` (suboptimality bound, default 1.2),
 //! `swarm`, `astar`, `jsa` (formation first, then makespan) or `jsa:W` (minimises
 //! `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the scripted rule, closing up above
-//! `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`, default 1). Joint-state A* runs on maps
+//! `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`, default 1), `e2e` (the end-to-end
+//! baseline, `--e2e DIR` or `models/e2e`). Joint-state A* runs on maps
 //! up to `--jsa-max-side` only.
 //!
 //! Output in `--out`: `runs.jsonl` (one record per run, appended as it finishes; `--resume`
@@ -138,6 +139,10 @@ pub(crate) struct BenchArgs {
     /// The meta policy's directory (default: the shipped models/meta, if any).
     #[arg(long, value_name = "DIR")]
     meta: Option<PathBuf>,
+    /// The end-to-end baseline's directory for the method `e2e` (default: the shipped
+    /// models/e2e).
+    #[arg(long, value_name = "DIR")]
+    e2e: Option<PathBuf>,
 }
 
 /// Runs `phalanx bench`.
@@ -206,11 +211,17 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
     let meta_file = meta_file(args.meta.as_deref())?;
     let names = match &args.methods {
         Some(list) => list.clone(),
-        None => default_methods(name, meta_file.is_some()),
+        None => {
+            let mut names = default_methods(name, meta_file.is_some());
+            if args.e2e.is_some() || models::weights_file(None, "e2e").is_ok() {
+                names.push("e2e".to_owned());
+            }
+            names
+        }
     };
     let mut methods = names
         .iter()
-        .map(|spec| method(spec, args.jsa_max_side, meta_file.as_deref()))
+        .map(|spec| method(spec, args.jsa_max_side, meta_file.as_deref(), args.e2e.as_deref()))
         .collect::<anyhow::Result<Vec<Method>>>()?;
 
     util::written(std::fs::create_dir_all(&args.out), &args.out)?;
@@ -223,6 +234,7 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         "jsa_max_side": args.jsa_max_side,
         "quick": quick,
         "meta": meta_file.as_ref().map(|f| f.display().to_string()),
+        "e2e": args.e2e.as_ref().map(|d| d.display().to_string()),
         "cases": cases.iter().map(|c| c.label.clone()).collect::<Vec<_>>(),
     });
     let settings_path = args.out.join("bench.json");
@@ -387,11 +399,13 @@ fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
 }
 
 /// The method named `spec` (`NAME[:PARAM]`); joint-state A* runs on sides up to
-/// `jsa_max_side`, `hrl` needs the meta policy `meta_file`.
+/// `jsa_max_side`, `hrl` needs the meta policy `meta_file`, `e2e` reads the end-to-end
+/// policy of `e2e_dir` (default: the shipped `models/e2e`).
 pub(crate) fn method(
     spec: &str,
     jsa_max_side: u32,
     meta_file: Option<&Path>,
+    e2e_dir: Option<&Path>,
 ) -> anyhow::Result<Method> {
     let (name, param) = match spec.split_once(':') {
         Some((name, param)) => (name, Some(param)),
@@ -442,6 +456,11 @@ pub(crate) fn method(
             let low = meta::low_level_of(pathfinding, None)?;
             Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
         }
+        "e2e" => {
+            no_param()?;
+            let (policy, _) = meta::load(e2e_dir, "e2e")?;
+            Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
+        }
         "hrl" => {
             let file = meta_file.context("method hrl: no meta policy (models/meta or --meta)")?;
             let (policy, header) =
@@ -452,7 +471,7 @@ pub(crate) fn method(
             Ok(Method::new(spec, Solver::Hierarchy(Box::new(hierarchy))))
         }
         other => anyhow::bail!(
-            "unknown method {other} (cbs, ecbs, swarm, astar, jsa, pathfinding, leader, hrl)"
+            "unknown method {other} (cbs, ecbs, swarm, astar, jsa, pathfinding, leader, hrl, e2e)"
         ),
     }
 }

@@ -71,7 +71,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     let names = [hierarchy, "pathfinding", "cbs", "swarm"];
     let mut methods = names
         .iter()
-        .map(|spec| bench::method(spec, 0, meta_file.as_deref()))
+        .map(|spec| bench::method(spec, 0, meta_file.as_deref(), None))
         .collect::<anyhow::Result<Vec<Method>>>()?;
     let settings = Settings {
         time_limit_s: args.time_limit,

@@ -35,6 +35,8 @@ pub(crate) enum PolicyName {
     /// The hierarchy with the scripted leader–follower meta rule (--wait-above,
     /// --patience) instead of a trained meta policy.
     Leader,
+    /// The end-to-end VDN baseline: the five moves on the meta task (`phalanx train e2e`).
+    E2e,
 }
 
 impl PolicyName {
@@ -45,6 +47,7 @@ impl PolicyName {
             PolicyName::Formation => "formation",
             PolicyName::Hrl => "meta",
             PolicyName::Leader => "leader",
+            PolicyName::E2e => "e2e",
         }
     }
 
@@ -53,7 +56,7 @@ impl PolicyName {
         match self {
             PolicyName::PathFinding => Task::PathFinding,
             PolicyName::Formation => Task::Formation,
-            PolicyName::Hrl | PolicyName::Leader => Task::Meta,
+            PolicyName::Hrl | PolicyName::Leader | PolicyName::E2e => Task::Meta,
         }
     }
 }

@@ -20,6 +20,9 @@ pub enum Solver {
     /// A hierarchy: a meta policy, learned or scripted, over the low level (rollouts of
     /// [`Settings`]).
     Hierarchy(Box<Hierarchy>),
+    /// The end-to-end baseline: one policy of the five moves on the meta task (formation
+    /// clipping; rollouts of [`Settings`]).
+    EndToEnd(Box<Policy>),
 }
 
 /// A solver with the name its runs are recorded under (`cbs`, `jsa:1`, `leader:0.7`,
@@ -83,6 +86,10 @@ impl Method {
                 let env = env_config(policy.config().fov, Task::PathFinding);
                 evaluate(policy, Task::PathFinding, &env, instances, 1, rollouts, &mut |_| {})?
             }
+            Solver::EndToEnd(policy) => {
+                let env = env_config(policy.config().fov, Task::Meta);
+                evaluate(policy, Task::Meta, &env, instances, 1, rollouts, &mut |_| {})?
+            }
             Solver::Hierarchy(hierarchy) => {
                 let env = env_config(hierarchy.low.fov(), Task::Meta);
                 evaluate_hierarchy(hierarchy, &env, instances, 1, rollouts, &mut |_| {})?
@@ -101,7 +108,7 @@ impl Method {
     pub fn fits(&self, instance: &Instance) -> Result<(), String> {
         let slots = match &self.solver {
             Solver::Planner(_) => return Ok(()),
-            Solver::PathFinding(policy) => policy.config().n_agents_max,
+            Solver::PathFinding(policy) | Solver::EndToEnd(policy) => policy.config().n_agents_max,
             Solver::Hierarchy(hierarchy) => hierarchy.n_agents_max(),
         };
         if instance.n_agents() > slots {

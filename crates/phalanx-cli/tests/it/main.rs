@@ -408,6 +408,27 @@ fn meta_training_weight_and_hierarchy_run_end_to_end() {
         let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
         assert_eq!(report["episodes"], 2, "{stdout}");
     }
+    // The end-to-end baseline: the same settings with the five moves; evaluated, drawn and
+    // benchmarked as a method.
+    let args = ["train", "e2e", "--config", "meta.json", "--steps", "60", "--out", "e2e"];
+    check(&phalanx(d, &args), 0);
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("e2e/config.json")).unwrap()).unwrap();
+    assert_eq!(saved["net"]["n_actions"], 5);
+    let args = ["eval", "--policy", "e2e", "--weights", "e2e", "--maps", "2", "--size", "16"];
+    let (stdout, _) = check(&phalanx(d, &[&args[..], &["--render", "pics", "--json"]].concat()), 0);
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(report["episodes"], 2, "{stdout}");
+    for k in 0..2 {
+        let svg = std::fs::read_to_string(d.join(format!("pics/episode-{k}.svg"))).unwrap();
+        assert!(svg.contains("animateTransform") || svg.contains("<svg"), "episode {k}");
+    }
+    assert!(!d.join("pics/episode-2.svg").exists(), "only the episodes run are drawn");
+    let bench = ["bench", "table2", "--quick", "--methods", "e2e", "--e2e", "e2e", "--out", "b"];
+    check(&phalanx(d, &bench), 0);
+    let runs = std::fs::read_to_string(d.join("b/runs.jsonl")).unwrap();
+    assert_eq!(runs.lines().count(), 7 * 2);
+    assert!(runs.lines().all(|l| !l.contains("\"outcome\":\"invalid\"")), "{runs}");
     // A low-level policy file is no meta policy.
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pathfinding");
     let args = ["eval", "--policy", "hrl", "--weights", shipped.to_str().unwrap(), "--maps", "1"];
