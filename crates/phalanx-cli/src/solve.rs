@@ -10,7 +10,8 @@
 //! `step_limit` and no plan is written.
 //!
 //! Exit codes: 0 a valid plan came back, 1 no plan (unsolvable, timeout, node limit, step
-//! limit) or an invalid one; bad input is an error (`main` maps it to 2).
+//! limit) or an invalid one, 4 an incomplete planner (prioritised A*) found none, which
+//! proves nothing; bad input is an error (`main` maps it to 2).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -147,7 +148,11 @@ fn report_summary(summary: &SolveSummary, json: bool) -> anyhow::Result<ExitCode
     } else {
         util::print(&format!("{}\n", summary.to_text()))?;
     }
-    Ok(if summary.outcome == Outcome::Solved { ExitCode::SUCCESS } else { ExitCode::from(1) })
+    Ok(match summary.outcome {
+        Outcome::Solved => ExitCode::SUCCESS,
+        Outcome::Incomplete => ExitCode::from(util::EXIT_INCOMPLETE),
+        _ => ExitCode::from(1),
+    })
 }
 
 /// Solves with a learned policy (see the module docs).

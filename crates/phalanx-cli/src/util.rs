@@ -15,6 +15,9 @@ pub(crate) const EXIT_BAD_INPUT: u8 = 2;
 /// cannot be written.
 pub(crate) const EXIT_RUNTIME: u8 = 3;
 
+/// An incomplete planner (prioritised A*) found no plan: the instance may still be solvable.
+pub(crate) const EXIT_INCOMPLETE: u8 = 4;
+
 /// Marks an error as a failed write of an output (exit [`EXIT_RUNTIME`], not bad input).
 #[derive(Debug, thiserror::Error)]
 #[error("writing {0}")]

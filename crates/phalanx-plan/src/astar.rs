@@ -39,8 +39,9 @@ pub struct AStarConfig {
 
 /// Prioritised planning (Silver 2005): agents plan one after another in `config.order`, each
 /// with space-time A* avoiding the paths of the agents before it (they stay at their goals
-/// afterwards). Incomplete: `Unsolvable` means "this order failed". For one agent it is plain
-/// optimal space-time A*. Nodes counted against the budget: low-level expansions.
+/// afterwards). Incomplete: when an agent after the first finds no path, the order failed and
+/// the report says [`PlanFailure::Incomplete`]; only the first agent's failure (no path even
+/// alone) is [`PlanFailure::Unsolvable`]. For one agent it is plain optimal space-time A*. Nodes counted against the budget: low-level expansions.
 pub fn solve(instance: &Instance, config: &AStarConfig, budget: &Budget) -> PlanReport {
     let clock = budget.start();
     let mut stats = SearchStats::default();
@@ -59,7 +60,7 @@ pub fn solve(instance: &Instance, config: &AStarConfig, budget: &Budget) -> Plan
     let mut reserved = Constraints::default();
     let mut paths: Vec<Vec<u32>> = vec![Vec::new(); n_agents];
     let max_time = joint_horizon_bound(instance);
-    for &agent in &order {
+    for (rank, &agent) in order.iter().enumerate() {
         let start = grid.id(instance.starts()[agent]).0;
         let goal = grid.id(instance.goals()[agent]).0;
         let dist = DistanceMap::bfs(grid, instance.goals()[agent]);
@@ -77,7 +78,9 @@ pub fn solve(instance: &Instance, config: &AStarConfig, budget: &Budget) -> Plan
             LowResult::Found(path) => path,
             LowResult::Infeasible => {
                 stats.runtime_s = clock.elapsed_s();
-                return PlanReport::failure(PlanFailure::Unsolvable, stats);
+                let failure =
+                    if rank == 0 { PlanFailure::Unsolvable } else { PlanFailure::Incomplete };
+                return PlanReport::failure(failure, stats);
             }
             LowResult::Timeout => {
                 stats.runtime_s = clock.elapsed_s();

@@ -94,6 +94,9 @@ pub struct SearchStats {
 pub enum PlanFailure {
     /// The planner proved that no plan exists (within its completeness guarantees).
     Unsolvable,
+    /// An incomplete planner found no plan, which proves nothing: the instance may still
+    /// be solvable (prioritised planning whose order failed).
+    Incomplete,
     /// The time limit was reached.
     Timeout,
     /// The node limit was reached.
@@ -104,6 +107,7 @@ impl std::fmt::Display for PlanFailure {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
             PlanFailure::Unsolvable => "unsolvable",
+            PlanFailure::Incomplete => "incomplete (no plan found, none proved impossible)",
             PlanFailure::Timeout => "timeout",
             PlanFailure::NodeLimit => "node limit",
         })

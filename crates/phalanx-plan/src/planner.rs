@@ -59,6 +59,9 @@ pub enum Outcome {
     Invalid,
     /// The planner proved that no plan exists.
     Unsolvable,
+    /// An incomplete planner (prioritised A*) found no plan; the instance may still be
+    /// solvable.
+    Incomplete,
     /// The time limit ran out.
     Timeout,
     /// The node limit ran out.
@@ -75,6 +78,7 @@ impl std::fmt::Display for Outcome {
             Outcome::Solved => "solved",
             Outcome::Invalid => "invalid",
             Outcome::Unsolvable => "unsolvable",
+            Outcome::Incomplete => "incomplete",
             Outcome::Timeout => "timeout",
             Outcome::NodeLimit => "node_limit",
             Outcome::StepLimit => "step_limit",
@@ -87,6 +91,7 @@ impl Outcome {
     pub fn of_failure(failure: PlanFailure) -> Outcome {
         match failure {
             PlanFailure::Unsolvable => Outcome::Unsolvable,
+            PlanFailure::Incomplete => Outcome::Incomplete,
             PlanFailure::Timeout => Outcome::Timeout,
             PlanFailure::NodeLimit => Outcome::NodeLimit,
         }

@@ -506,3 +506,17 @@ fn bench_quick_runs_every_row_and_method_and_resumes() {
     let (_, stderr) = check(&phalanx(d, &["bench", "files", "--methods", "cbs:fast", "x.yaml"]), 2);
     assert!(stderr.contains("x.yaml") || stderr.contains("fast"), "{stderr}");
 }
+
+#[test]
+fn prioritised_a_star_failing_its_order_is_incomplete_not_unsolvable() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A corridor with a pocket: agent 0 parks on its goal before agent 1 can pass.
+    let grid = phalanx_core::Grid::from_fn(5, 2, |c| c.y == 1 && c.x != 2);
+    let cell = phalanx_core::Cell::new;
+    let inst = Instance::new(grid, vec![cell(1, 0), cell(4, 0)], vec![cell(3, 0), cell(0, 0)]);
+    phalanx_io::write_instance(&d.join("pocket.yaml"), &inst.unwrap()).unwrap();
+    let (stdout, _) = check(&phalanx(d, &["solve", "pocket.yaml", "--planner", "astar"]), 4);
+    assert!(stdout.contains("outcome: incomplete"), "{stdout}");
+    check(&phalanx(d, &["solve", "pocket.yaml", "--planner", "cbs"]), 0);
+}

@@ -297,3 +297,17 @@ fn cbs_solves_the_crossing_formation_case_at_its_optimum() {
         assert_eq!(solve(config, 500).0, 480, "{config:?}");
     }
 }
+
+#[test]
+fn prioritised_a_star_says_incomplete_where_its_order_fails() {
+    // `a` parks on its goal `A` before `b` can pass towards `B`; the pocket below lets a
+    // complete planner solve it.
+    let inst = instance("Ba.Ab\n##.##");
+    let report = astar::solve(&inst, &astar::AStarConfig::default(), &Budget::seconds(1.0));
+    assert_eq!(report.result.unwrap_err(), PlanFailure::Incomplete);
+    assert!(cbs_soc(&inst, &cbs::CbsConfig::default()).is_ok(), "the instance is solvable");
+    // Planned in the other order, `b` passes first and `a` follows.
+    let order = astar::AStarConfig { order: Some(vec![1, 0]) };
+    let report = astar::solve(&inst, &order, &Budget::seconds(1.0));
+    validate(&inst, &report.result.unwrap()).unwrap();
+}
