@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use plotters::prelude::*;
+use phalanx_render::chart::{Axis, Figure, Marker, Panel, Point, Series};
 use serde::Serialize;
 
 use phalanx_plan::planner::Outcome;
@@ -125,33 +125,23 @@ pub fn markdown(cases: &[Case], cells: &[Cell]) -> String {
     out
 }
 
-/// A panel's chart builder: its caption and the house margins and label areas.
-fn panel<'a, 'b, DB: DrawingBackend>(
-    area: &'a DrawingArea<DB, plotters::coord::Shift>,
-    caption: &str,
-) -> ChartBuilder<'a, 'b, DB> {
-    let mut builder = ChartBuilder::on(area);
-    builder
-        .caption(caption, ("sans-serif", 18))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(64);
-    builder
+/// Writes `figure` as an SVG to `path`.
+fn write_figure(figure: &Figure, path: &Path) -> Result<(), BenchError> {
+    let plot_err = |message: String| BenchError::Plot { path: path.display().to_string(), message };
+    let svg = phalanx_render::chart::chart_svg(figure).map_err(|err| plot_err(err.to_string()))?;
+    std::fs::write(path, svg).map_err(|err| plot_err(err.to_string()))
 }
 
-/// Colours of the methods in the figures, in order.
-const PALETTE: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-];
+/// A series of markers (no line) named `name`.
+fn dots(name: Option<&str>, colour: usize, points: &[(f64, f64)], marker: Marker) -> Series {
+    Series {
+        name: name.map(str::to_owned),
+        colour,
+        width: 1,
+        line: false,
+        points: points.iter().map(|&(x, y)| Point { x, y, marker }).collect(),
+    }
+}
 
 /// `table2.svg`: per case (x, in order), each method's mean makespan (left panel, log axis)
 /// and Table II formation loss (right panel) over its solved runs; a method that solved
@@ -165,63 +155,54 @@ pub fn plot_table2(
     cells: &[Cell],
     path: &Path,
 ) -> Result<(), BenchError> {
-    let plot_err = |err: &dyn std::fmt::Display| BenchError::Plot {
-        path: path.display().to_string(),
-        message: err.to_string(),
+    let values = |f: &dyn Fn(&Cell) -> Option<f64>| -> Vec<Vec<(f64, f64)>> {
+        methods
+            .iter()
+            .map(|m| {
+                cases
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, case)| {
+                        cells
+                            .iter()
+                            .find(|c| c.case == case.label && &c.method == m)
+                            .and_then(f)
+                            .map(|v| (i as f64, v))
+                    })
+                    .collect()
+            })
+            .collect()
     };
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::new(path, (1400, 600)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let panels = root.split_evenly((1, 2));
-        let values = |f: &dyn Fn(&Cell) -> Option<f64>| -> Vec<Vec<(usize, f64)>> {
-            methods
-                .iter()
-                .map(|m| {
-                    cases
-                        .iter()
-                        .enumerate()
-                        .filter_map(|(i, case)| {
-                            cells
-                                .iter()
-                                .find(|c| c.case == case.label && &c.method == m)
-                                .and_then(f)
-                                .map(|v| (i, v))
-                        })
-                        .collect()
-                })
-                .collect()
-        };
-        let makespan = values(&|c| c.makespan);
-        let loss = values(&|c| c.formation_loss);
-        let label = |i: &usize| cases.get(*i).map(|c| c.label.clone()).unwrap_or_default();
-        let hi = |series: &[Vec<(usize, f64)>]| {
-            series.iter().flatten().map(|p| p.1).fold(1.0_f64, f64::max) * 1.2
-        };
-        let n = cases.len().max(1);
-        {
-            let mut chart = panel(&panels[0], "makespan (solved runs, mean)")
-                .build_cartesian_2d(0..n, (1.0..hi(&makespan)).log_scale())?;
-            chart.configure_mesh().x_labels(n).x_label_formatter(&label).draw()?;
-            for (k, (name, points)) in methods.iter().zip(&makespan).enumerate() {
-                let colour = PALETTE[k % PALETTE.len()];
-                chart
-                    .draw_series(points.iter().map(|&p| Circle::new(p, 5, colour.filled())))?
-                    .label(name.as_str())
-                    .legend(move |(x, y)| Circle::new((x, y), 5, colour.filled()));
-            }
-            chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
-        }
-        let mut chart = panel(&panels[1], "Table II formation loss (solved runs, mean)")
-            .build_cartesian_2d(0..n, 0.0..hi(&loss))?;
-        chart.configure_mesh().x_labels(n).x_label_formatter(&label).draw()?;
-        for (k, points) in loss.iter().enumerate() {
-            let colour = PALETTE[k % PALETTE.len()];
-            chart.draw_series(points.iter().map(|&p| Circle::new(p, 5, colour.filled())))?;
-        }
-        root.present()?;
-        Ok(())
+    let makespan = values(&|c| c.makespan);
+    let loss = values(&|c| c.formation_loss);
+    let hi = |series: &[Vec<(f64, f64)>]| {
+        series.iter().flatten().map(|p| p.1).fold(1.0_f64, f64::max) * 1.2
     };
-    draw().map_err(|err| plot_err(&err))
+    let n = cases.len().max(1) as f64;
+    let categories = Some(cases.iter().map(|c| c.label.clone()).collect::<Vec<_>>());
+    let x = Axis { label: None, range: (-0.5, n - 0.5), log: false, categories };
+    let named = |k: usize| Some(methods[k].as_str());
+    let left = Panel {
+        title: "makespan (solved runs, mean)".into(),
+        x: x.clone(),
+        y: Axis { log: true, ..Axis::linear((1.0, hi(&makespan))) },
+        series: makespan
+            .iter()
+            .enumerate()
+            .map(|(k, p)| dots(named(k), k, p, Marker::Circle))
+            .collect(),
+        legend: true,
+    };
+    let right = Panel {
+        title: "Table II formation loss (solved runs, mean)".into(),
+        x,
+        y: Axis::linear((0.0, hi(&loss))),
+        series: loss.iter().enumerate().map(|(k, p)| dots(None, k, p, Marker::Circle)).collect(),
+        legend: false,
+    };
+    let figure =
+        Figure { width: 1400, height: 600, rows: 1, columns: 2, panels: vec![left, right] };
+    write_figure(&figure, path)
 }
 
 /// `pareto.svg`: per case (one panel each), every method's point (mean makespan, mean Table
@@ -237,18 +218,16 @@ pub fn plot_pareto(
     cells: &[Cell],
     path: &Path,
 ) -> Result<(), BenchError> {
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        let root =
-            SVGBackend::new(path, (600 * cases.len().max(1) as u32, 560)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let mut families: Vec<&str> = Vec::new();
-        for m in methods {
-            let family = m.split(':').next().unwrap_or(m);
-            if !families.contains(&family) {
-                families.push(family);
-            }
+    let mut families: Vec<&str> = Vec::new();
+    for m in methods {
+        let family = m.split(':').next().unwrap_or(m);
+        if !families.contains(&family) {
+            families.push(family);
         }
-        for (area, case) in root.split_evenly((1, cases.len().max(1))).iter().zip(cases) {
+    }
+    let panels = cases
+        .iter()
+        .map(|case| {
             let here: Vec<&Cell> = cells.iter().filter(|c| c.case == case.label).collect();
             let points = |family: &str| -> Vec<(f64, f64)> {
                 let mut p: Vec<(f64, f64)> = here
@@ -267,37 +246,35 @@ pub fn plot_pareto(
             let y_hi = all.iter().map(|p| p.1).fold(0.0_f64, f64::max);
             let (x_lo, x_hi) =
                 if x_lo.is_finite() { (x_lo * 0.95, x_hi * 1.05) } else { (0.0, 1.0) };
-            let mut chart = panel(area, &format!("{}: makespan vs formation loss", case.label))
-                .build_cartesian_2d(x_lo..x_hi.max(x_lo + 1.0), 0.0..(y_hi * 1.1).max(0.1))?;
-            chart
-                .configure_mesh()
-                .x_desc("makespan (mean, solved)")
-                .y_desc("Table II formation loss (mean, solved)")
-                .draw()?;
-            for (k, family) in families.iter().enumerate() {
-                let colour = PALETTE[k % PALETTE.len()];
-                let p = points(family);
-                chart.draw_series(LineSeries::new(p.clone(), colour))?;
-                chart
-                    .draw_series(p.iter().map(|&q| Circle::new(q, 5, colour.filled())))?
-                    .label(*family)
-                    .legend(move |(x, y)| Circle::new((x, y), 5, colour.filled()));
-            }
+            let mut series: Vec<Series> = families
+                .iter()
+                .enumerate()
+                .map(|(k, family)| Series {
+                    line: true,
+                    ..dots(Some(family), k, &points(family), Marker::Circle)
+                })
+                .collect();
             if let Some(point) = paper {
-                chart
-                    .draw_series(std::iter::once(Cross::new(point, 7, BLACK.stroke_width(2))))?
-                    .label("the paper's method")
-                    .legend(|(x, y)| Cross::new((x, y), 5, BLACK.stroke_width(2)));
+                series.push(dots(Some("the paper's method"), 0, &[point], Marker::Cross));
             }
-            chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
-        }
-        root.present()?;
-        Ok(())
-    };
-    draw().map_err(|err| BenchError::Plot {
-        path: path.display().to_string(),
-        message: err.to_string(),
-    })
+            Panel {
+                title: format!("{}: makespan vs formation loss", case.label),
+                x: Axis {
+                    label: Some("makespan (mean, solved)".into()),
+                    ..Axis::linear((x_lo, x_hi.max(x_lo + 1.0)))
+                },
+                y: Axis {
+                    label: Some("Table II formation loss (mean, solved)".into()),
+                    ..Axis::linear((0.0, (y_hi * 1.1).max(0.1)))
+                },
+                series,
+                legend: true,
+            }
+        })
+        .collect();
+    let columns = cases.len().max(1);
+    let figure = Figure { width: 600 * columns as u32, height: 560, rows: 1, columns, panels };
+    write_figure(&figure, path)
 }
 
 /// `scaling.svg`: mean runtime (left, log–log) and success rate (right, log side axis)
@@ -313,89 +290,74 @@ pub fn plot_scaling(
     cells: &[Cell],
     path: &Path,
 ) -> Result<(), BenchError> {
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        let root = SVGBackend::new(path, (1400, 600)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let panels = root.split_evenly((1, 2));
-        let mut teams: Vec<usize> = cases.iter().map(|c| c.agents).collect();
-        teams.sort_unstable();
-        teams.dedup();
-        let side_of = |label: &str| cases.iter().find(|c| c.label == label).map(|c| c.side);
-        let agents_of = |label: &str| cases.iter().find(|c| c.label == label).map(|c| c.agents);
-        let lines: Vec<(String, usize, Vec<&Cell>)> = methods
-            .iter()
-            .enumerate()
-            .flat_map(|(k, m)| {
-                teams.iter().map(move |&team| {
-                    let here: Vec<&Cell> = cells
-                        .iter()
-                        .filter(|c| &c.method == m && agents_of(&c.case) == Some(team))
-                        .collect();
-                    (format!("{m}, {team} agents"), k, here)
-                })
-            })
-            .filter(|(_, _, here)| !here.is_empty())
-            .collect();
-        let x_hi = cases.iter().map(|c| f64::from(c.side)).fold(2.0_f64, f64::max) * 1.2;
-        let x_lo = cases.iter().map(|c| f64::from(c.side)).fold(f64::INFINITY, f64::min) / 1.2;
-        let x_lo = if x_lo.is_finite() { x_lo } else { 1.0 };
-        let t_hi = cells.iter().map(|c| c.runtime_s).fold(1e-3_f64, f64::max) * 2.0;
-        let t_lo =
-            cells.iter().map(|c| c.runtime_s).filter(|&t| t > 0.0).fold(t_hi, f64::min) / 2.0;
-        let style = |k: usize, team: usize| {
-            let colour = PALETTE[k % PALETTE.len()];
+    let mut teams: Vec<usize> = cases.iter().map(|c| c.agents).collect();
+    teams.sort_unstable();
+    teams.dedup();
+    let side_of = |label: &str| cases.iter().find(|c| c.label == label).map(|c| c.side);
+    let agents_of = |label: &str| cases.iter().find(|c| c.label == label).map(|c| c.agents);
+    let x_hi = cases.iter().map(|c| f64::from(c.side)).fold(2.0_f64, f64::max) * 1.2;
+    let x_lo = cases.iter().map(|c| f64::from(c.side)).fold(f64::INFINITY, f64::min) / 1.2;
+    let x_lo = if x_lo.is_finite() { x_lo } else { 1.0 };
+    let t_hi = cells.iter().map(|c| c.runtime_s).fold(1e-3_f64, f64::max) * 2.0;
+    let t_lo = cells.iter().map(|c| c.runtime_s).filter(|&t| t > 0.0).fold(t_hi, f64::min) / 2.0;
+    let (mut runtime, mut success) = (Vec::new(), Vec::new());
+    for (k, m) in methods.iter().enumerate() {
+        for &team in &teams {
+            let here: Vec<&Cell> = cells
+                .iter()
+                .filter(|c| &c.method == m && agents_of(&c.case) == Some(team))
+                .collect();
+            if here.is_empty() {
+                continue;
+            }
             let width = 1 + teams.iter().position(|&t| t == team).unwrap_or(0) as u32;
-            (colour, width)
-        };
-        let mut left = panel(&panels[0], "runtime per instance (mean, s)")
-            .build_cartesian_2d((x_lo..x_hi).log_scale(), (t_lo..t_hi).log_scale())?;
-        left.configure_mesh().x_desc("map side").y_desc("seconds").draw()?;
-        for (label, k, here) in &lines {
-            let team = agents_of(&here[0].case).unwrap_or(0);
-            let (colour, width) = style(*k, team);
-            let mut points: Vec<(f64, f64, bool)> = here
-                .iter()
-                .filter_map(|c| {
-                    Some((f64::from(side_of(&c.case)?), c.runtime_s.max(t_lo), c.timeouts > 0))
-                })
-                .collect();
+            let mut points: Vec<(f64, &Cell)> =
+                here.iter().filter_map(|c| Some((f64::from(side_of(&c.case)?), *c))).collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let line: Vec<(f64, f64)> = points.iter().map(|p| (p.0, p.1)).collect();
-            left.draw_series(LineSeries::new(line, colour.stroke_width(width)))?
-                .label(label.as_str())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(width))
-                });
-            left.draw_series(
-                points.iter().filter(|p| !p.2).map(|p| Circle::new((p.0, p.1), 4, colour.filled())),
-            )?;
-            left.draw_series(
-                points
+            let marker = |c: &Cell| if c.timeouts > 0 { Marker::Triangle } else { Marker::Circle };
+            runtime.push(Series {
+                name: Some(format!("{m}, {team} agents")),
+                colour: k,
+                width,
+                line: true,
+                points: points
                     .iter()
-                    .filter(|p| p.2)
-                    .map(|p| TriangleMarker::new((p.0, p.1), 7, colour.filled())),
-            )?;
+                    .map(|&(x, c)| Point { x, y: c.runtime_s.max(t_lo), marker: marker(c) })
+                    .collect(),
+            });
+            success.push(Series {
+                name: None,
+                colour: k,
+                width,
+                line: true,
+                points: points
+                    .iter()
+                    .map(|&(x, c)| Point { x, y: c.success_rate, marker: Marker::Circle })
+                    .collect(),
+            });
         }
-        left.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
-        let mut right = panel(&panels[1], "success rate (triangles: some runs timed out)")
-            .build_cartesian_2d((x_lo..x_hi).log_scale(), 0.0..1.05)?;
-        right.configure_mesh().x_desc("map side").y_desc("success").draw()?;
-        for (_, k, here) in &lines {
-            let team = agents_of(&here[0].case).unwrap_or(0);
-            let (colour, width) = style(*k, team);
-            let mut points: Vec<(f64, f64)> = here
-                .iter()
-                .filter_map(|c| Some((f64::from(side_of(&c.case)?), c.success_rate)))
-                .collect();
-            points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            right.draw_series(LineSeries::new(points.clone(), colour.stroke_width(width)))?;
-            right.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled())))?;
-        }
-        root.present()?;
-        Ok(())
+    }
+    let side = |label: &str, range: (f64, f64)| Axis {
+        label: Some(label.into()),
+        range,
+        log: true,
+        categories: None,
     };
-    draw().map_err(|err| BenchError::Plot {
-        path: path.display().to_string(),
-        message: err.to_string(),
-    })
+    let left = Panel {
+        title: "runtime per instance (mean, s)".into(),
+        x: side("map side", (x_lo, x_hi)),
+        y: side("seconds", (t_lo, t_hi)),
+        series: runtime,
+        legend: true,
+    };
+    let right = Panel {
+        title: "success rate (triangles: some runs timed out)".into(),
+        x: side("map side", (x_lo, x_hi)),
+        y: Axis { label: Some("success".into()), ..Axis::linear((0.0, 1.05)) },
+        series: success,
+        legend: false,
+    };
+    let figure =
+        Figure { width: 1400, height: 600, rows: 1, columns: 2, panels: vec![left, right] };
+    write_figure(&figure, path)
 }

@@ -1,6 +1,7 @@
 //! Pictures of phalanx: an instance and a plan (or a learned episode) drawn as an animated
 //! SVG that loops in any browser, an animated GIF, or a PNG of one step; and the training
-//! curves. Bytes out, no IO: the caller writes the files.
+//! curves and the benchmark's charts ([`chart`]). Bytes out, no IO: the caller writes the
+//! files.
 //!
 //! Every picture shows the grid and its obstacles, the goals, each agent with its id and
 //! colour, its trail and its field of view, the **target formation aligned to the team**
@@ -24,6 +25,7 @@
 //! [`Options::max_frames`] steps shows every `k`-th step; the obstacles drawn are those some
 //! window shows. Output is byte-deterministic (see [`svg`]).
 
+pub mod chart;
 mod curves;
 mod font;
 mod raster;

@@ -159,3 +159,34 @@ fn a_large_episode_is_cropped_to_the_team_and_stays_small() {
     let png = phalanx_render::png(&scene, &whole, 0);
     assert!(matches!(png, Ok(_) | Err(RenderError::TooLarge(..))));
 }
+
+#[test]
+fn charts_draw_categories_log_axes_and_legends() {
+    use phalanx_render::chart::{Axis, Figure, Marker, Panel, Point, Series, chart_svg};
+    let points = |ys: &[f64]| -> Vec<Point> {
+        ys.iter()
+            .enumerate()
+            .map(|(i, &y)| Point { x: i as f64, y, marker: Marker::Circle })
+            .collect()
+    };
+    let categories = Some(vec!["20x3".to_owned(), "512x3".to_owned()]);
+    let panel = Panel {
+        title: "makespan".into(),
+        x: Axis { label: None, range: (-0.5, 1.5), log: false, categories },
+        y: Axis { label: Some("steps".into()), range: (1.0, 5000.0), log: true, categories: None },
+        series: vec![Series {
+            name: Some("cbs".into()),
+            colour: 0,
+            width: 2,
+            line: true,
+            points: points(&[34.0, 1018.0]),
+        }],
+        legend: true,
+    };
+    let figure = Figure { width: 600, height: 400, rows: 1, columns: 1, panels: vec![panel] };
+    let svg = chart_svg(&figure).unwrap();
+    for text in ["makespan", "20x3", "512x3", "steps", "cbs"] {
+        assert!(svg.contains(text), "{text} drawn");
+    }
+    assert_eq!(svg, chart_svg(&figure).unwrap(), "deterministic");
+}
