@@ -233,8 +233,11 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         "rollouts": plan.settings.rollouts,
         "jsa_max_side": args.jsa_max_side,
         "quick": quick,
-        "meta": meta_file.as_ref().map(|f| f.display().to_string()),
-        "e2e": args.e2e.as_ref().map(|d| d.display().to_string()),
+        // The learned policies by their weights' checksums, not by how their path is spelt,
+        // so that a resume from another directory or binary finds the same settings.
+        "meta": meta_file.as_deref().map(checksum).transpose()?,
+        "e2e": args.e2e.as_deref().map(|d| models::weights_file(Some(d), "e2e")).transpose()?
+            .as_deref().map(checksum).transpose()?,
         "cases": cases.iter().map(|c| c.label.clone()).collect::<Vec<_>>(),
     });
     let settings_path = args.out.join("bench.json");
@@ -361,6 +364,13 @@ fn cbs_variant(spec: &str, param: Option<&str>) -> anyhow::Result<cbs::CbsConfig
         cg_heuristic: on[4],
         conflict_avoidance: on[5],
     })
+}
+
+/// The CRC-32 of a policy file's weights, as the meta policy's header records them.
+fn checksum(file: &Path) -> anyhow::Result<String> {
+    let reference = phalanx_rl::PolicyRef::of(file)
+        .with_context(|| format!("reading the policy {}", file.display()))?;
+    Ok(reference.crc32)
 }
 
 /// The meta policy's file: `dir`'s, else the shipped one if there is one.

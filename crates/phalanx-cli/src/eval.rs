@@ -276,10 +276,14 @@ fn text(r: &Report<'_>) -> String {
         ("success_rate", format!("{:.3}", s.success_rate)),
         (
             "makespan",
-            format!(
-                "{:.2} (lower bound {:.2}, ratio {:.3}; solved episodes)",
-                s.makespan, s.lower_bound, s.makespan_ratio
-            ),
+            if s.makespan.is_nan() {
+                "- (no episode solved)".to_owned()
+            } else {
+                format!(
+                    "{:.2} (lower bound {:.2}, ratio {:.3}; solved episodes)",
+                    s.makespan, s.lower_bound, s.makespan_ratio
+                )
+            },
         ),
         ("collisions", format!("{:.2} per episode", s.collisions)),
         ("formation_loss", format!("{:.4} (sum of L_f over steps / map side)", s.formation_loss)),
