@@ -12,7 +12,7 @@
 //! Parameters are initialised from a seeded [`ChaCha8Rng`] (not burn's device RNG, which is
 //! shared process state), so the same seed gives the same network on any thread count.
 
-use burn::module::{Module, Param};
+use burn::module::{Module, ModuleMapper, Param, ParamId};
 use burn::nn::conv::Conv2d;
 use burn::nn::{Linear, PaddingConfig2d};
 use burn::tensor::activation::{relu, sigmoid, tanh};
@@ -139,7 +139,20 @@ impl QNetConfig {
         let head_hidden =
             linear(rng, self.lstm_hidden + self.message_dim(), self.head_hidden, true, device);
         let head_out = linear(rng, self.head_hidden, self.n_actions, true, device);
-        QNet { convs, dense, lstm, head_hidden, head_out }
+        QNet { convs, dense, lstm, head_hidden, head_out }.map(&mut SequentialIds(0))
+    }
+}
+
+/// Gives the parameters the ids 0, 1, … in the order the module visits them, instead of
+/// burn's random ones: two runs with the same seed then write byte-identical policy files and
+/// checkpoints (a file that is loaded keeps the ids it holds).
+struct SequentialIds(u64);
+
+impl ModuleMapper for SequentialIds {
+    fn map_float<const D: usize>(&mut self, mut param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+        param.id = ParamId::from(self.0);
+        self.0 += 1;
+        param
     }
 }
 

@@ -8,6 +8,7 @@ use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
 mod render;
+mod threads;
 
 fn phalanx(dir: &Path, args: &[&str]) -> Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"))
