@@ -1,9 +1,8 @@
 //! Training curves: panels of moving averages against environment steps, as an SVG (the
 //! `curves.svg` of every training run).
 
-use plotters::prelude::*;
-
 use crate::RenderError;
+use crate::chart::{Axis, Figure, Marker, Panel, Point, Series, chart_svg};
 
 /// One panel: a title and its `(environment step, value)` points.
 #[derive(Debug, Clone, PartialEq)]
@@ -18,40 +17,40 @@ pub struct Curve {
 /// `window` points.
 ///
 /// # Errors
-/// If plotters fails to draw (a bug).
+/// If the chart cannot be drawn (a bug).
 pub fn training_curves(curves: &[Curve], window: usize) -> Result<String, RenderError> {
-    let mut out = String::new();
-    draw(curves, window, &mut out).map_err(|err| RenderError::Raster(err.to_string()))?;
-    Ok(out)
-}
-
-fn draw(
-    curves: &[Curve],
-    window: usize,
-    out: &mut String,
-) -> Result<(), Box<dyn std::error::Error>> {
     let rows = curves.len().div_ceil(2).max(1);
-    let root = SVGBackend::with_string(out, (1200, 400 * rows as u32)).into_drawing_area();
-    root.fill(&WHITE)?;
     let max_step = curves.iter().flat_map(|c| &c.points).map(|it| it.0).fold(1.0_f64, f64::max);
-    for (area, curve) in root.split_evenly((rows, 2)).iter().zip(curves) {
-        let smooth = moving_average(&curve.points, window);
-        let (lo, hi) = smooth
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), it| (lo.min(it.1), hi.max(it.1)));
-        let (lo, hi) = if lo.is_finite() { (lo, hi.max(lo + 1e-9)) } else { (0.0, 1.0) };
-        let pad = (hi - lo) * 0.05;
-        let mut chart = ChartBuilder::on(area)
-            .caption(format!("{} (moving average of {window})", curve.title), ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(32)
-            .y_label_area_size(56)
-            .build_cartesian_2d(0.0..max_step, (lo - pad)..(hi + pad))?;
-        chart.configure_mesh().x_desc("environment steps").x_labels(6).y_labels(6).draw()?;
-        chart.draw_series(LineSeries::new(smooth, &BLUE))?;
-    }
-    root.present()?;
-    Ok(())
+    let panels = curves
+        .iter()
+        .map(|curve| {
+            let smooth = moving_average(&curve.points, window);
+            let (lo, hi) =
+                smooth.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), it| {
+                    (lo.min(it.1), hi.max(it.1))
+                });
+            let (lo, hi) = if lo.is_finite() { (lo, hi.max(lo + 1e-9)) } else { (0.0, 1.0) };
+            let pad = (hi - lo) * 0.05;
+            let points = smooth.iter().map(|&(x, y)| Point { x, y, marker: Marker::None });
+            Panel {
+                title: format!("{} (moving average of {window})", curve.title),
+                x: Axis {
+                    label: Some("environment steps".into()),
+                    ..Axis::linear((0.0, max_step))
+                },
+                y: Axis::linear((lo - pad, hi + pad)),
+                series: vec![Series {
+                    name: None,
+                    colour: 0,
+                    width: 1,
+                    line: true,
+                    points: points.collect(),
+                }],
+                legend: false,
+            }
+        })
+        .collect();
+    chart_svg(&Figure { width: 1200, height: 400 * rows as u32, rows, columns: 2, panels })
 }
 
 /// Trailing moving average over up to `window` points.
