@@ -33,13 +33,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_eval::bench::{self, Plan};
 use phalanx_eval::report::{self, Cell};
 use phalanx_eval::runs::{self, Appender};
-use phalanx_eval::{BenchError, Case, Method, Settings, Solver};
-use phalanx_plan::PlannerChoice;
-use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
-use phalanx_plan::{astar, cbs, ecbs, swarm};
-use phalanx_rl::Hierarchy;
+use phalanx_eval::{BenchError, Case, Method, Settings, Sources};
+use phalanx_rl::models;
 
-use crate::{meta, models, util};
+use crate::{meta, util};
 
 /// The benchmarks.
 #[derive(Debug, clap::Subcommand)]
@@ -333,39 +330,6 @@ fn map_cases(sources: &[PathBuf], agents: usize) -> anyhow::Result<Vec<Case>> {
         .collect()
 }
 
-/// The CBS improvements by their names in `cbs:FLAGS`.
-const CBS_FLAGS: [&str; 6] = ["pc", "bp", "rect", "target", "cg", "cat"];
-
-/// The CBS configuration of `cbs[:FLAGS]` (`spec`): without flags the default (every
-/// improvement), `cbs:plain` none, `cbs:pc+rect` exactly those named, `cbs:no-cat+no-bp`
-/// every one but those (the ablations of docs/cbs.md).
-fn cbs_variant(spec: &str, param: Option<&str>) -> anyhow::Result<cbs::CbsConfig> {
-    let Some(param) = param else { return Ok(cbs::CbsConfig::default()) };
-    let tokens: Vec<&str> = if param == "plain" { Vec::new() } else { param.split('+').collect() };
-    let without = tokens.first().is_some_and(|t| t.starts_with("no-"));
-    let mut on = [without; 6];
-    for token in &tokens {
-        let name = if without { token.strip_prefix("no-") } else { Some(*token) };
-        let slot = name.and_then(|name| CBS_FLAGS.iter().position(|f| *f == name));
-        let Some(slot) = slot else {
-            anyhow::bail!(
-                "method {spec}: {token} is not a CBS flag (plain, or {} joined by +, each \
-                 with no- to leave it out)",
-                CBS_FLAGS.join(", ")
-            );
-        };
-        on[slot] = !without;
-    }
-    Ok(cbs::CbsConfig {
-        prioritize_conflicts: on[0],
-        bypass: on[1],
-        rectangle_reasoning: on[2],
-        target_reasoning: on[3],
-        cg_heuristic: on[4],
-        conflict_avoidance: on[5],
-    })
-}
-
 /// The CRC-32 of a policy file's weights, as the meta policy's header records them.
 fn checksum(file: &Path) -> anyhow::Result<String> {
     let reference = phalanx_rl::PolicyRef::of(file)
@@ -417,73 +381,8 @@ pub(crate) fn method(
     meta_file: Option<&Path>,
     e2e_dir: Option<&Path>,
 ) -> anyhow::Result<Method> {
-    let (name, param) = match spec.split_once(':') {
-        Some((name, param)) => (name, Some(param)),
-        None => (spec, None),
-    };
-    let number = || -> anyhow::Result<Option<f64>> {
-        param
-            .map(|p| {
-                p.parse::<f64>()
-                    .ok()
-                    .filter(|v| v.is_finite() && *v >= 0.0)
-                    .with_context(|| format!("method {spec}: {p} is not a non-negative number"))
-            })
-            .transpose()
-    };
-    let planner = |choice| Ok(Method::new(spec, Solver::Planner(choice)));
-    let no_param = || {
-        anyhow::ensure!(param.is_none(), "method {spec}: {name} takes no parameter");
-        Ok(())
-    };
-    match name {
-        "cbs" => planner(PlannerChoice::Cbs(cbs_variant(spec, param)?)),
-        "astar" => no_param()
-            .and_then(|()| planner(PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()))),
-        "swarm" => {
-            no_param().and_then(|()| planner(PlannerChoice::Swarm(swarm::SwarmConfig::default())))
-        }
-        "ecbs" => planner(PlannerChoice::Ecbs(ecbs::EcbsConfig { w: number()?.unwrap_or(1.2) })),
-        "jsa" => {
-            let objective = number()?.map_or(Objective::FormationFirst, Objective::Weighted);
-            let mut m = Method::new(
-                spec,
-                Solver::Planner(PlannerChoice::JointAStar(JointAStarConfig::with_objective(
-                    objective,
-                ))),
-            );
-            m.max_side = Some(jsa_max_side);
-            Ok(m)
-        }
-        "pathfinding" => {
-            no_param()?;
-            let (policy, _) = meta::load(None, "pathfinding")?;
-            Ok(Method::new(spec, Solver::PathFinding(Box::new(policy))))
-        }
-        "leader" => {
-            let rule = phalanx_rl::ScriptedMeta::new(number()?, 8);
-            let (pathfinding, _) = meta::load(None, "pathfinding")?;
-            let low = meta::low_level_of(pathfinding, None)?;
-            Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
-        }
-        "e2e" => {
-            no_param()?;
-            let (policy, _) = meta::load(e2e_dir, "e2e")?;
-            Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
-        }
-        "hrl" => {
-            let file = meta_file.context("method hrl: no meta policy (models/meta or --meta)")?;
-            let (policy, header) =
-                phalanx_rl::policy_file::load_policy_any(file, &burn::tensor::Device::flex())
-                    .with_context(|| format!("loading the meta policy {}", file.display()))?;
-            let hierarchy =
-                meta::hierarchy(policy, &header, file, None, None, number()?.unwrap_or(1.0))?;
-            Ok(Method::new(spec, Solver::Hierarchy(Box::new(hierarchy))))
-        }
-        other => anyhow::bail!(
-            "unknown method {other} (cbs, ecbs, swarm, astar, jsa, pathfinding, leader, hrl, e2e)"
-        ),
-    }
+    let sources = Sources { jsa_max_side: Some(jsa_max_side), meta: meta_file, e2e: e2e_dir };
+    Ok(Method::named(spec, &sources)?)
 }
 
 /// `runs.csv`, `cells.json`, `<name>.md` and `<name>.svg` of the records.
@@ -508,33 +407,4 @@ fn write_outputs(
         _ => report::plot_table2(cases, methods, cells, &tmp)?,
     }
     std::fs::rename(&tmp, &svg).with_context(|| format!("writing {}", svg.display()))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cbs_variants_name_the_improvements_on() {
-        let on = |spec: &str| {
-            let param = spec.split_once(':').map(|(_, p)| p);
-            let c = cbs_variant(spec, param).unwrap();
-            [
-                c.prioritize_conflicts,
-                c.bypass,
-                c.rectangle_reasoning,
-                c.target_reasoning,
-                c.cg_heuristic,
-                c.conflict_avoidance,
-            ]
-        };
-        assert_eq!(on("cbs"), [true; 6]);
-        assert_eq!(on("cbs:plain"), [false; 6]);
-        assert_eq!(on("cbs:pc+rect"), [true, false, true, false, false, false]);
-        assert_eq!(on("cbs:no-cat+no-bp"), [true, false, true, true, true, false]);
-        let err = cbs_variant("cbs:pc+fast", Some("pc+fast")).unwrap_err().to_string();
-        assert!(err.contains("fast is not a CBS flag"), "{err}");
-        // A list either names what is on or what is off.
-        assert!(cbs_variant("cbs:pc+no-cat", Some("pc+no-cat")).is_err());
-    }
 }

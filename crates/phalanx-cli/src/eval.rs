@@ -20,7 +20,9 @@ use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{EvalSummary, Hierarchy, Rollouts, evaluate, evaluate_hierarchy};
 use serde::Serialize;
 
-use crate::{meta, models, render, util};
+use phalanx_rl::models;
+
+use crate::{meta, render, util};
 
 /// The learned policies `phalanx eval` runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -193,11 +195,11 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
     let mut progress = |done: usize| bar.set_position(done as u64);
     let episodes = if scripted {
-        let low = meta::low_level_of(policy, cmd.formation_weights.as_deref())?;
+        let low = models::low_level_of(policy, cmd.formation_weights.as_deref())?;
         let mut hierarchy = Hierarchy::scripted(rule, low);
         evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
     } else if cmd.policy == PolicyName::Hrl {
-        let mut hierarchy = meta::hierarchy(
+        let mut hierarchy = models::hierarchy(
             policy,
             &header,
             &file,

@@ -14,7 +14,6 @@ mod eval;
 mod generate;
 mod info;
 mod meta;
-mod models;
 mod plot;
 mod render;
 mod sim;

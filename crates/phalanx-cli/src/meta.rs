@@ -2,53 +2,15 @@
 //! (given files or the shipped models) and the base formation weights (given, or estimated
 //! with Eq. 14 at the start of a run).
 
-use std::path::Path;
-
 use anyhow::Context as _;
-use burn::tensor::Device;
-use phalanx_rl::policy_file::{Header, load_policy_any};
 use phalanx_rl::{
-    FormationWeight, Hierarchy, Learner, LowLevel, MetaInfo, Policy, PolicyRef, Rollouts,
-    ScriptedMeta, TrainConfig, estimate_weight,
+    FormationWeight, Learner, LowLevel, MetaInfo, Policy, Rollouts, ScriptedMeta, TrainConfig,
+    estimate_weight,
 };
 
-use crate::{models, util};
+use phalanx_rl::models;
 
-/// Loads the policy file of `name` from `path` or the shipped model, with its reference.
-pub(crate) fn load(path: Option<&Path>, name: &str) -> anyhow::Result<(Policy, PolicyRef)> {
-    let file = match path {
-        Some(path) if path.is_file() => path.to_path_buf(),
-        other => models::weights_file(other, name)?,
-    };
-    let (policy, _) = load_policy_any(&file, &Device::flex())
-        .with_context(|| format!("loading the {name} policy"))?;
-    let reference = PolicyRef::of(&file).with_context(|| format!("loading the {name} policy"))?;
-    Ok((policy, reference))
-}
-
-/// Refuses low-level policies other than those `saved` records (`owner` names the meta
-/// policy in the message).
-fn same_low_level(
-    saved: &MetaInfo,
-    pathfinding: &PolicyRef,
-    formation: &PolicyRef,
-    owner: &str,
-) -> anyhow::Result<()> {
-    for (what, saved, now) in [
-        ("path-finding", &saved.pathfinding, pathfinding),
-        ("formation", &saved.formation, formation),
-    ] {
-        anyhow::ensure!(
-            saved.crc32 == now.crc32,
-            "{owner} was trained over the {what} policy {} (crc32 {}), not {} (crc32 {})",
-            saved.file,
-            saved.crc32,
-            now.file,
-            now.crc32
-        );
-    }
-    Ok(())
-}
+use crate::util;
 
 /// The low level of a meta run and what its files record: the policies of the settings (the
 /// shipped ones by default; on resume, the checkpoint's record must match them) and the base
@@ -57,10 +19,10 @@ pub(crate) fn low_level(
     config: &TrainConfig,
     learner: &Learner,
 ) -> anyhow::Result<(LowLevel, MetaInfo)> {
-    let (pathfinding, pf_ref) = load(config.meta.pathfinding.as_deref(), "pathfinding")?;
-    let (mut formation, fm_ref) = load(config.meta.formation.as_deref(), "formation")?;
+    let (pathfinding, pf_ref) = models::load(config.meta.pathfinding.as_deref(), "pathfinding")?;
+    let (mut formation, fm_ref) = models::load(config.meta.formation.as_deref(), "formation")?;
     if let Some(saved) = learner.meta() {
-        same_low_level(saved, &pf_ref, &fm_ref, "the checkpoint's meta policy")?;
+        models::check_low_level(saved, &pf_ref, &fm_ref, "the checkpoint's meta policy")?;
     }
     let saved = learner.meta().map(|saved| saved.weight.base.as_slice());
     let base = base_weights(config, saved, &mut formation)?;
@@ -134,39 +96,4 @@ impl RolloutArgs {
     pub(crate) fn rollouts(&self, seed: u64, max: usize) -> Rollouts {
         Rollouts { count: (self.rollouts as usize).min(max), epsilon: self.random_prob, seed }
     }
-}
-
-/// The low level of the loaded path-finding policy and the formation policy of `formation`
-/// (the shipped one by default).
-pub(crate) fn low_level_of(
-    pathfinding: Policy,
-    formation: Option<&Path>,
-) -> anyhow::Result<LowLevel> {
-    let (fm, _) = load(formation, "formation")?;
-    LowLevel::new(pathfinding, fm).context("the low-level policies")
-}
-
-/// The hierarchy of the meta policy `meta` (read from `file` with `header`) over the
-/// low-level policies it was trained over, or those given; run at `multiple` × `w_f`.
-///
-/// # Errors
-/// If the file is no meta policy, or a low-level policy cannot be read or is not the one
-/// the meta policy was trained over.
-pub(crate) fn hierarchy(
-    meta: Policy,
-    header: &Header,
-    file: &Path,
-    pathfinding: Option<&Path>,
-    formation: Option<&Path>,
-    multiple: f64,
-) -> anyhow::Result<Hierarchy> {
-    let info = header.meta.as_ref().with_context(|| {
-        format!("{} is not a meta policy (its header has no hierarchy)", file.display())
-    })?;
-    let (pf, pf_ref) = load(pathfinding, "pathfinding")?;
-    let (fm, fm_ref) = load(formation, "formation")?;
-    same_low_level(info, &pf_ref, &fm_ref, &file.display().to_string())?;
-    let low = LowLevel::new(pf, fm).context("the low-level policies")?;
-    Hierarchy::new(meta, low, info.weight.clone(), multiple)
-        .with_context(|| format!("the meta policy {}", file.display()))
 }

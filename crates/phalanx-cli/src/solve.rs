@@ -27,7 +27,9 @@ use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
 use phalanx_rl::policy_file::load_policy_any;
 
-use crate::{meta, models, render, util};
+use phalanx_rl::models;
+
+use crate::{meta, render, util};
 
 /// The planners `phalanx solve` offers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -166,10 +168,10 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let (policy, header) = load_policy_any(&file, &Device::flex())
         .with_context(|| format!("loading the {name} policy"))?;
     let solver = if hrl {
-        let hierarchy = meta::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
+        let hierarchy = models::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
         Solver::Hierarchy(Box::new(hierarchy))
     } else if scripted {
-        let low = meta::low_level_of(policy, None)?;
+        let low = models::low_level_of(policy, None)?;
         Solver::Hierarchy(Box::new(phalanx_rl::Hierarchy::scripted(rule, low)))
     } else {
         Solver::PathFinding(Box::new(policy))

@@ -25,6 +25,8 @@ use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use phalanx_env::MarlEnv;
 use phalanx_rl::{Collector, Learner, Multiples, TrainConfig, TrainTask, metrics};
 
+use phalanx_rl::models;
+
 use crate::{meta, plot, util};
 
 /// The policy file (online network only, what `phalanx eval` and `models/` use) written
@@ -169,7 +171,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         return train(collector, learner, &config, dir, cmd.resume);
     }
     if task == TrainTask::EndToEnd {
-        let (mut formation, _) = meta::load(config.meta.formation.as_deref(), "formation")?;
+        let (mut formation, _) = models::load(config.meta.formation.as_deref(), "formation")?;
         config.meta.base_weight = Some(meta::base_weights(&config, None, &mut formation)?);
     }
     write_config(&saved_config, &config)?;

@@ -12,7 +12,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{WeightConfig, estimate_weight};
 
-use crate::{models, util};
+use phalanx_rl::models;
+
+use crate::util;
 
 /// Estimates the balancing weight w_f (Eq. 14).
 #[derive(Debug, clap::Args)]

@@ -5,6 +5,8 @@
 //! - [`bench`]: the runs of a benchmark, one at a time, in a fixed order;
 //! - [`Method`]: a named solver (a classical planner with its budget, the path-finding policy
 //!   alone, or a hierarchy over the low level) run on one instance at a time;
+//! - [`named`]: methods by name (`cbs:plain`, `ecbs:1.5`, `hrl:2`, …), as the command line
+//!   and the Python package spell them;
 //! - [`suite`]: the cases of a benchmark (the rows of the paper's Table II, docs/spec.md §8; the 20²
 //!   rows of the Pareto front) and their instances from the evaluation stream;
 //! - [`runs`]: one [`RunRecord`] per (case, instance, method), appended to `runs.jsonl` as
@@ -12,16 +14,18 @@
 //! - [`report`]: the per-cell aggregates, the Markdown table with the paper's figures beside
 //!   ours, and the SVG figures.
 //!
-//! The crate never loads a network itself: the command line hands it loaded policies, so
-//! that this crate does not name the tensor library.
+//! The crate never names the tensor library: learned policies come loaded from the command
+//! line or through `phalanx_rl::models`.
 
 pub mod bench;
 pub mod method;
+pub mod named;
 pub mod report;
 pub mod runs;
 pub mod suite;
 
 pub use method::{Method, Settings, Solved, Solver};
+pub use named::{MethodError, Sources};
 pub use report::{Cell, cells};
 pub use runs::{RunKey, RunRecord};
 pub use suite::{Case, PAPER_ROWS, PaperRow};

@@ -170,6 +170,20 @@ pub fn png(scene: &Scene<'_>, options: &Options, step: usize) -> Result<Vec<u8>,
     raster::png(scene, &layout, options, step)
 }
 
+/// The pixels of step `step` of `scene` as [`png`] draws them: width, height and RGBA bytes
+/// (`4 × width × height`, row after row from the top; every pixel opaque).
+///
+/// # Errors
+/// As [`png`].
+pub fn rgba(
+    scene: &Scene<'_>,
+    options: &Options,
+    step: usize,
+) -> Result<(u32, u32, Vec<u8>), RenderError> {
+    let layout = still_layout(scene, options, step)?;
+    raster::still_rgba(scene, &layout, options, step)
+}
+
 /// The animated GIF of `scene`, at most [`GIF_MAX_FRAMES`] frames.
 ///
 /// # Errors

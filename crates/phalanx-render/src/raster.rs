@@ -39,6 +39,17 @@ fn rgba(
     Ok((w, h, pixmap.take()))
 }
 
+/// The RGBA pixels of step `step` (frame `step` of a layout of every step): width, height and
+/// `4 × width × height` bytes, row after row from the top.
+pub(crate) fn still_rgba(
+    scene: &Scene<'_>,
+    layout: &Layout,
+    options: &Options,
+    step: usize,
+) -> Result<(u32, u32, Vec<u8>), RenderError> {
+    rgba(scene, layout, options, step, Edges::Smooth)
+}
+
 /// The PNG of step `step` (frame `step` of a layout of every step).
 pub(crate) fn png(
     scene: &Scene<'_>,
@@ -46,7 +57,7 @@ pub(crate) fn png(
     options: &Options,
     step: usize,
 ) -> Result<Vec<u8>, RenderError> {
-    let (w, h, data) = rgba(scene, layout, options, step, Edges::Smooth)?;
+    let (w, h, data) = still_rgba(scene, layout, options, step)?;
     let mut out = Vec::new();
     let mut encoder = png::Encoder::new(&mut out, w, h);
     encoder.set_color(png::ColorType::Rgba);

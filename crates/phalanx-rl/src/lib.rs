@@ -11,6 +11,8 @@
 //! - [`weight`]: the balancing weight `w_f` of Eq. 14;
 //! - [`settings`]: a training run's settings, the task defaults and the collectors they build;
 //! - [`train`]: the collect/update loop ([`Collector`]) and its metric names;
+//! - [`models`]: finding and loading trained policies (a file, a directory or the shipped
+//!   `models/`) and the hierarchy of a meta policy over its low level;
 //! - [`policy_file`]: the file format of policy files and checkpoints (checksummed sections)
 //!   and loading a policy for acting;
 //! - [`checkpoint`]: atomic checkpoints of the whole learner with typed load errors.
@@ -38,6 +40,7 @@ pub mod eval;
 pub mod hierarchy;
 mod hyper;
 pub mod learner;
+pub mod models;
 pub mod net;
 pub mod policy;
 pub mod policy_file;

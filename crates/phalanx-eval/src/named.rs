@@ -1,0 +1,224 @@
+//! Methods by name, `NAME[:PARAM]`, as `phalanx bench`, `phalanx demo` and the Python
+//! package spell them: `cbs`, `cbs:FLAGS` (the ablations: `plain`, exactly the improvements
+//! named, `pc+bp+rect+target+cg+cat`, or all but some, `no-cat+no-bp`), `ecbs[:W]`
+//! (suboptimality bound, default 1.2), `swarm`, `astar`, `jsa` (formation first, then
+//! makespan) or `jsa:W` (minimises `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the
+//! scripted rule, closing up above `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`,
+//! default 1) and `e2e` (the end-to-end baseline).
+//!
+//! The learned ones are loaded by `phalanx_rl::models` (given files or the shipped models).
+
+use std::path::Path;
+
+use phalanx_plan::PlannerChoice;
+use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
+use phalanx_plan::{astar, cbs, ecbs, swarm};
+use phalanx_rl::models::{self, ModelError};
+use phalanx_rl::{Hierarchy, ScriptedMeta};
+use thiserror::Error;
+
+use crate::{Method, Solver};
+
+/// The names [`Method::named`] knows.
+pub const METHOD_NAMES: [&str; 9] =
+    ["cbs", "ecbs", "swarm", "astar", "jsa", "pathfinding", "leader", "hrl", "e2e"];
+
+/// The CBS improvements by their names in `cbs:FLAGS`.
+pub const CBS_FLAGS: [&str; 6] = ["pc", "bp", "rect", "target", "cg", "cat"];
+
+/// Where the learned methods' weights come from, and joint-state A*'s reach.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Sources<'a> {
+    /// The largest map side joint-state A* is run on (`None`: every side).
+    pub jsa_max_side: Option<u32>,
+    /// The meta policy of `hrl` (a file or weights directory; `None`: the shipped one).
+    pub meta: Option<&'a Path>,
+    /// The end-to-end policy of `e2e` (a file or weights directory; `None`: the shipped one).
+    pub e2e: Option<&'a Path>,
+}
+
+/// Why a method name cannot be run.
+#[derive(Debug, Error)]
+pub enum MethodError {
+    /// No method has the name.
+    #[error("unknown method {name} ({})", METHOD_NAMES.join(", "))]
+    Unknown {
+        /// The name given.
+        name: String,
+    },
+    /// The parameter is not a non-negative number.
+    #[error("method {spec}: {param} is not a non-negative number")]
+    Number {
+        /// The whole name.
+        spec: String,
+        /// The parameter.
+        param: String,
+    },
+    /// The method takes no parameter.
+    #[error("method {spec}: {name} takes no parameter")]
+    NoParameter {
+        /// The whole name.
+        spec: String,
+        /// The method.
+        name: String,
+    },
+    /// A CBS ablation names an unknown improvement, or mixes on and off.
+    #[error(
+        "method {spec}: {token} is not a CBS flag (plain, or {} joined by +, each with no- to \
+         leave it out)",
+        CBS_FLAGS.join(", ")
+    )]
+    CbsFlag {
+        /// The whole name.
+        spec: String,
+        /// The word not understood.
+        token: String,
+    },
+    /// A learned method's weights cannot be loaded.
+    #[error("method {spec}")]
+    Model {
+        /// The whole name.
+        spec: String,
+        /// Why.
+        source: ModelError,
+    },
+}
+
+impl Method {
+    /// The method named `spec` (`NAME[:PARAM]`, see the module docs), its learned policies
+    /// loaded from `sources`.
+    ///
+    /// # Errors
+    /// If the name or parameter is unknown or the weights cannot be loaded.
+    pub fn named(spec: &str, sources: &Sources<'_>) -> Result<Method, MethodError> {
+        let (name, param) = match spec.split_once(':') {
+            Some((name, param)) => (name, Some(param)),
+            None => (spec, None),
+        };
+        let number = || -> Result<Option<f64>, MethodError> {
+            param
+                .map(|p| {
+                    p.parse::<f64>().ok().filter(|v| v.is_finite() && *v >= 0.0).ok_or_else(|| {
+                        MethodError::Number { spec: spec.to_owned(), param: p.to_owned() }
+                    })
+                })
+                .transpose()
+        };
+        let no_param = || match param {
+            None => Ok(()),
+            Some(_) => {
+                Err(MethodError::NoParameter { spec: spec.to_owned(), name: name.to_owned() })
+            }
+        };
+        let model = |source| MethodError::Model { spec: spec.to_owned(), source };
+        let planner = |choice| Ok(Method::new(spec, Solver::Planner(choice)));
+        match name {
+            "cbs" => planner(PlannerChoice::Cbs(cbs_variant(spec, param)?)),
+            "astar" => {
+                no_param()?;
+                planner(PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()))
+            }
+            "swarm" => {
+                no_param()?;
+                planner(PlannerChoice::Swarm(swarm::SwarmConfig::default()))
+            }
+            "ecbs" => {
+                planner(PlannerChoice::Ecbs(ecbs::EcbsConfig { w: number()?.unwrap_or(1.2) }))
+            }
+            "jsa" => {
+                let objective = number()?.map_or(Objective::FormationFirst, Objective::Weighted);
+                let config = JointAStarConfig::with_objective(objective);
+                let mut method =
+                    Method::new(spec, Solver::Planner(PlannerChoice::JointAStar(config)));
+                method.max_side = sources.jsa_max_side;
+                Ok(method)
+            }
+            "pathfinding" => {
+                no_param()?;
+                let (policy, _) = models::load(None, "pathfinding").map_err(model)?;
+                Ok(Method::new(spec, Solver::PathFinding(Box::new(policy))))
+            }
+            "leader" => {
+                let rule = ScriptedMeta::new(number()?, 8);
+                let (pathfinding, _) = models::load(None, "pathfinding").map_err(model)?;
+                let low = models::low_level_of(pathfinding, None).map_err(model)?;
+                Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
+            }
+            "e2e" => {
+                no_param()?;
+                let (policy, _) = models::load(sources.e2e, "e2e").map_err(model)?;
+                Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
+            }
+            "hrl" => {
+                let multiple = number()?.unwrap_or(1.0);
+                let hierarchy = models::load_hierarchy(sources.meta, multiple).map_err(model)?;
+                Ok(Method::new(spec, Solver::Hierarchy(Box::new(hierarchy))))
+            }
+            other => Err(MethodError::Unknown { name: other.to_owned() }),
+        }
+    }
+}
+
+/// The CBS configuration of `cbs:FLAGS` (`param` is `FLAGS`; every improvement without it).
+fn cbs_variant(spec: &str, param: Option<&str>) -> Result<cbs::CbsConfig, MethodError> {
+    let Some(param) = param else { return Ok(cbs::CbsConfig::default()) };
+    let tokens: Vec<&str> = if param == "plain" { Vec::new() } else { param.split('+').collect() };
+    let without = tokens.first().is_some_and(|t| t.starts_with("no-"));
+    let mut on = [without; 6];
+    for token in &tokens {
+        let name = if without { token.strip_prefix("no-") } else { Some(*token) };
+        let slot = name.and_then(|name| CBS_FLAGS.iter().position(|f| *f == name));
+        let Some(slot) = slot else {
+            return Err(MethodError::CbsFlag { spec: spec.to_owned(), token: (*token).to_owned() });
+        };
+        on[slot] = !without;
+    }
+    Ok(cbs::CbsConfig {
+        prioritize_conflicts: on[0],
+        bypass: on[1],
+        rectangle_reasoning: on[2],
+        target_reasoning: on[3],
+        cg_heuristic: on[4],
+        conflict_avoidance: on[5],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cbs_variants_name_the_improvements_on() {
+        let on = |spec: &str| {
+            let param = spec.split_once(':').map(|(_, p)| p);
+            let c = cbs_variant(spec, param).unwrap();
+            [
+                c.prioritize_conflicts,
+                c.bypass,
+                c.rectangle_reasoning,
+                c.target_reasoning,
+                c.cg_heuristic,
+                c.conflict_avoidance,
+            ]
+        };
+        assert_eq!(on("cbs"), [true; 6]);
+        assert_eq!(on("cbs:plain"), [false; 6]);
+        assert_eq!(on("cbs:pc+rect"), [true, false, true, false, false, false]);
+        assert_eq!(on("cbs:no-cat+no-bp"), [true, false, true, true, true, false]);
+        let err = cbs_variant("cbs:pc+fast", Some("pc+fast")).unwrap_err().to_string();
+        assert!(err.contains("fast is not a CBS flag"), "{err}");
+        // A list either names what is on or what is off.
+        assert!(cbs_variant("cbs:pc+no-cat", Some("pc+no-cat")).is_err());
+    }
+
+    #[test]
+    fn bad_names_and_parameters_are_refused_with_the_name() {
+        let err = |spec: &str| Method::named(spec, &Sources::default()).unwrap_err().to_string();
+        assert!(err("dijkstra").starts_with("unknown method dijkstra (cbs, ecbs"));
+        assert_eq!(err("ecbs:-1"), "method ecbs:-1: -1 is not a non-negative number");
+        assert_eq!(err("swarm:2"), "method swarm:2: swarm takes no parameter");
+        let jsa =
+            Method::named("jsa:0.5", &Sources { jsa_max_side: Some(32), ..Sources::default() });
+        assert_eq!(jsa.unwrap().max_side, Some(32));
+    }
+}

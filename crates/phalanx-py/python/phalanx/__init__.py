@@ -1,0 +1,36 @@
+"""phalanx from Python: multi-agent path finding in formation over the Rust core.
+
+- ``parallel_env(...)``: a PettingZoo ``ParallelEnv`` (every agent observes, then the joint
+  action);
+- ``env(...)``: the turn-by-turn ``AECEnv`` in leader order, where each agent sees the
+  actions already chosen this step by those before it (the paper's communication scheme);
+- ``generate``, ``read_instance``, ``solve``, ``validate``: instances, every planner and
+  learned solver by name, and the one validator with its metrics;
+- ``load_policy("pathfinding" | "formation" | "e2e" | "hrl")``: the shipped policies, with an
+  ``act(observations)`` that carries the recurrent state.
+
+Bad input raises ``PhalanxError`` (a ``ValueError``) with the Rust message.
+"""
+
+from __future__ import annotations
+
+from phalanx._phalanx import PhalanxError, default_formation_weight
+from phalanx.envs import AECEnv, ParallelEnv, env, parallel_env
+from phalanx.policies import load_policy
+from phalanx.toolkit import Instance, Solution, generate, read_instance, solve, validate
+
+__all__ = [
+    "AECEnv",
+    "Instance",
+    "ParallelEnv",
+    "PhalanxError",
+    "Solution",
+    "default_formation_weight",
+    "env",
+    "generate",
+    "load_policy",
+    "parallel_env",
+    "read_instance",
+    "solve",
+    "validate",
+]

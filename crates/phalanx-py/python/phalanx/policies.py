@@ -1,0 +1,92 @@
+"""The shipped policies from Python.
+
+``load_policy(name)`` gives a policy whose ``act(observations)`` takes the observation dict
+of a phalanx environment (``{agent: {"obstacles", "agents", "cost", "formation", "goal",
+"action_mask", "message", "rank"}}``) and returns ``{agent: action}``. Agents choose in the
+order of their ``rank``, each with the actions of those before it as its message, so the
+parallel form plays exactly as the turn-by-turn one. The recurrent state is carried from
+call to call: ``reset()`` at the start of every episode.
+"""
+
+from __future__ import annotations
+
+import os
+import numpy as np
+
+from phalanx import _phalanx
+from phalanx.envs import CHANNELS, world_of
+
+Observations = dict[str, dict[str, np.ndarray]]
+
+
+class Policy:
+    """A learned policy of the five moves (``pathfinding``, ``formation`` or ``e2e``)."""
+
+    def __init__(self, name: str, weights: str | os.PathLike | None = None) -> None:
+        self.name = name
+        self._net = _phalanx.Policy(name, None if weights is None else os.fspath(weights))
+
+    @property
+    def n_agents_max(self) -> int:
+        return self._net.n_agents_max
+
+    def reset(self) -> None:
+        """Forgets the recurrent state (a new episode)."""
+        self._net.reset()
+
+    def act(self, observations: Observations, epsilon: float = 0.0) -> dict[str, int]:
+        """Every agent's action, greedy among the allowed ones (or ε-greedy)."""
+        names = list(observations)
+        obs = [observations[name] for name in names]
+        grid = np.ascontiguousarray(
+            np.stack([np.stack([o[c] for c in CHANNELS]) for o in obs]), dtype=np.float32
+        )
+        vector = np.ascontiguousarray(np.stack([o["goal"] for o in obs]), dtype=np.float32)
+        mask = np.ascontiguousarray(np.stack([o["action_mask"] for o in obs]), dtype=np.int8)
+        rank = np.ascontiguousarray([int(o["rank"]) for o in obs], dtype=np.int64)
+        actions = self._net.act(grid, vector, mask, rank, epsilon)
+        return dict(zip(names, actions))
+
+
+class HierarchicalPolicy:
+    """The paper's method: the meta policy choosing path finding or formation per agent and
+    step over the two frozen policies. Its formation frame is placed on the team's
+    positions, so it reads the world the observations view (they must come from a phalanx
+    environment, stepped with the actions returned; it keeps its own copy of the episode and
+    refuses a world that took other actions)."""
+
+    def __init__(self, weights: str | os.PathLike | None = None, multiple: float = 1.0) -> None:
+        self.name = "hrl"
+        self._net = _phalanx.Hierarchy(None if weights is None else os.fspath(weights), multiple)
+
+    def reset(self) -> None:
+        self._net.reset()
+
+    @property
+    def choices(self) -> list[int]:
+        """Each agent's low-level policy in the last step: 0 path finding, 1 formation."""
+        return self._net.choices
+
+    def act(self, observations: Observations) -> dict[str, int]:
+        world = next((world_of(o) for o in observations.values()), None)
+        if world is None:
+            raise _phalanx.PhalanxError(
+                "hrl acts on the observations of a phalanx environment (it reads their world)"
+            )
+        actions = self._net.act(world)
+        names = [f"agent_{i}" for i in range(world.n_agents)]
+        return {name: a for name, a in zip(names, actions) if name in observations}
+
+
+def load_policy(
+    name: str, weights: str | os.PathLike | None = None, multiple: float = 1.0
+) -> Policy | HierarchicalPolicy:
+    """A shipped policy (``models/<name>``) or the one in ``weights``: ``pathfinding``,
+    ``formation``, ``e2e`` or ``hrl`` (at ``multiple × w_f``)."""
+    if name == "hrl":
+        return HierarchicalPolicy(weights, multiple)
+    if name not in ("pathfinding", "formation", "e2e"):
+        raise _phalanx.PhalanxError(
+            f"policy {name!r}: pathfinding, formation, e2e or hrl"
+        )
+    return Policy(name, weights)

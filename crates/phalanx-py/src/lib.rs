@@ -1,0 +1,52 @@
+//! `phalanx._phalanx`, the extension module under the Python package `phalanx`: the
+//! simulation environment with its observation buffers as NumPy arrays ([`world::World`]),
+//! instances, the planners and the validator ([`toolkit`]) and the shipped policies
+//! ([`policy`]). The PettingZoo classes are the thin pure-Python layer in `python/phalanx`.
+//!
+//! Nothing panics across the boundary: bad input comes back as `phalanx.PhalanxError` (a
+//! `ValueError`) carrying the Rust message with its causes (file, line, value).
+
+use pyo3::prelude::*;
+
+mod policy;
+mod toolkit;
+mod world;
+
+pyo3::create_exception!(
+    _phalanx,
+    PhalanxError,
+    pyo3::exceptions::PyValueError,
+    "Bad input to phalanx: a file, a setting, an instance, a plan or an action."
+);
+
+/// The Python exception of `err`, its message the error and its causes joined by ": ".
+pub(crate) fn error(err: &(dyn std::error::Error + 'static)) -> PyErr {
+    let mut message = err.to_string();
+    let mut source = err.source();
+    while let Some(cause) = source {
+        message.push_str(": ");
+        message.push_str(&cause.to_string());
+        source = cause.source();
+    }
+    PhalanxError::new_err(message)
+}
+
+/// A `PhalanxError` with `message`.
+pub(crate) fn bad(message: impl Into<String>) -> PyErr {
+    PhalanxError::new_err(message.into())
+}
+
+#[pymodule]
+fn _phalanx(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("PhalanxError", m.py().get_type::<PhalanxError>())?;
+    m.add_class::<world::World>()?;
+    m.add_class::<toolkit::PyInstance>()?;
+    m.add_class::<policy::PyPolicy>()?;
+    m.add_class::<policy::PyHierarchy>()?;
+    m.add_function(wrap_pyfunction!(toolkit::generate, m)?)?;
+    m.add_function(wrap_pyfunction!(toolkit::read_instance, m)?)?;
+    m.add_function(wrap_pyfunction!(toolkit::solve, m)?)?;
+    m.add_function(wrap_pyfunction!(toolkit::validate, m)?)?;
+    m.add_function(wrap_pyfunction!(toolkit::default_formation_weight, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,252 @@
+"""Tests of the Python package: PettingZoo's own API and seed tests, the observations against
+the Rust environment and an encoding computed here, plans from Python through the one
+validator, the shipped policies against `phalanx solve`, and bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, seed_test
+
+import phalanx
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+
+
+def phalanx_bin() -> str:
+    """The `phalanx` binary of this checkout (built by the test command before pytest)."""
+    if "PHALANX_BIN" in os.environ:
+        return os.environ["PHALANX_BIN"]
+    target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+    for profile in ("debug", "release"):
+        candidate = target / profile / "phalanx"
+        if candidate.is_file():
+            return str(candidate)
+    raise RuntimeError(f"no phalanx binary under {target}: cargo build -p phalanx-cli first")
+
+
+@pytest.fixture(scope="module")
+def instance_file(tmp_path_factory) -> pathlib.Path:
+    path = tmp_path_factory.mktemp("inst") / "seed7.yaml"
+    subprocess.run([phalanx_bin(), "gen", "--seed", "7", "-o", str(path)], check=True)
+    return path
+
+
+@pytest.mark.parametrize("task", ["pathfinding", "formation", "meta"])
+def test_parallel_api(task):
+    parallel_api_test(phalanx.parallel_env(task=task, size=20), num_cycles=100)
+    parallel_seed_test(lambda: phalanx.parallel_env(task=task, size=20))
+
+
+def test_aec_api():
+    api_test(phalanx.env(size=20), num_cycles=100)
+    seed_test(lambda: phalanx.env(size=20))
+
+
+def test_is_a_pettingzoo_env_whose_spaces_are_stable():
+    import pettingzoo
+
+    env = phalanx.parallel_env()
+    assert isinstance(env, pettingzoo.ParallelEnv)
+    assert isinstance(phalanx.env(), pettingzoo.AECEnv)
+    env.reset(seed=1)
+    for agent in env.possible_agents:
+        assert env.observation_space(agent) is env.observation_space(agent)
+        assert env.action_space(agent) is env.action_space(agent)
+    env.render_mode = "ansi"  # PettingZoo's tests set attributes
+    assert env.agents == env.possible_agents
+
+
+def test_seed_plays_the_generators_instance_and_views_update_in_place(instance_file):
+    by_seed = phalanx.parallel_env(seed=7)
+    by_file = phalanx.parallel_env(instance=instance_file)
+    obs_seed, _ = by_seed.reset(seed=7)
+    obs_file, _ = by_file.reset()
+    generated = phalanx.read_instance(instance_file)
+    assert by_seed.world.instance.starts == generated.starts
+    assert by_seed.world.instance.goals == generated.goals
+    view = obs_seed["agent_0"]["cost"]
+    first, start = np.copy(view), by_seed.world.positions
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        for agent in by_seed.possible_agents:
+            for key, value in obs_seed[agent].items():
+                np.testing.assert_array_equal(value, obs_file[agent][key], err_msg=key)
+        actions = {a: int(rng.integers(5)) for a in by_seed.agents}
+        obs_seed, r_seed, *_ = by_seed.step(actions)
+        obs_file, r_file, *_ = by_file.step(actions)
+        assert r_seed == r_file
+    # The arrays are views of the world's buffers: the same objects, new contents.
+    assert obs_seed["agent_0"]["cost"] is view
+    assert by_seed.world.positions != start and not np.array_equal(first, view)
+    with pytest.raises(ValueError):
+        obs_seed["agent_0"]["cost"][0, 0] = 1.0
+
+
+def test_observation_encoding_matches_one_computed_here():
+    env = phalanx.parallel_env(size=32, agents=3, fov=9)
+    obs, _ = env.reset(seed=11)
+    instance = env.world.instance
+    blocked = instance.obstacles
+    f, r = 9, 4
+    for i, (x, y) in enumerate(env.world.positions):
+        o = obs[f"agent_{i}"]
+        # Row 0 of the window is the smallest y, column 0 the smallest x; outside is blocked.
+        expected = np.ones((f, f), np.float32)
+        for row in range(f):
+            for col in range(f):
+                cx, cy = x + col - r, y + row - r
+                if 0 <= cx < instance.width and 0 <= cy < instance.height:
+                    expected[row, col] = float(blocked[cy, cx])
+        np.testing.assert_array_equal(o["obstacles"], expected)
+        assert o["agents"][r, r] == pytest.approx((i + 1) / 3)
+        gx, gy = instance.goals[i]
+        d = np.hypot(gx - x, gy - y)
+        np.testing.assert_allclose(o["goal"], [(gx - x) / d, (gy - y) / d, d / (d + f)], rtol=1e-6)
+        assert o["action_mask"][4] == 1 and o["action_mask"].dtype == np.int8
+        assert not o["message"].any()
+    assert sorted(int(obs[a]["rank"]) for a in env.agents) == [0, 1, 2]
+
+
+def test_turn_by_turn_messages_carry_the_earlier_actions():
+    aec = phalanx.env(seed=5)
+    aec.reset(seed=5)
+    chosen = {}
+    for k in range(3):
+        agent = aec.agent_selection
+        message = aec.observe(agent)["message"]
+        assert int(aec.observe(agent)["rank"]) == k
+        for earlier, action in chosen.items():
+            row = message[int(earlier.split("_")[1])]
+            assert row[action] == 1.0 and row.sum() == 1.0
+        assert message.sum() == len(chosen)
+        chosen[agent] = 4
+        aec.step(4)
+    assert aec.world.t == 1
+
+
+def test_a_plan_solved_from_python_validates_and_is_scored_like_the_cli(instance_file):
+    instance = phalanx.read_instance(instance_file)
+    solution = phalanx.solve(instance, "cbs", time_limit=10)
+    assert solution.solved
+    violation, metrics = phalanx.validate(instance, solution.plan)
+    assert violation is None
+    cli = subprocess.run(
+        [phalanx_bin(), "solve", str(instance_file), "--planner", "cbs", "--json"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    assert json.loads(cli.stdout)["metrics"]["sum_of_costs"] == metrics["sum_of_costs"]
+    broken = [list(p) for p in solution.plan]
+    broken[0][1] = broken[0][0][0] + 5, broken[0][0][1]
+    violation, _ = phalanx.validate(instance, broken)
+    assert violation is not None and "agent 0" in violation
+
+
+def test_replaying_a_plan_in_the_environment_gives_the_validators_figures(instance_file):
+    instance = phalanx.read_instance(instance_file)
+    plan = phalanx.solve(instance, "cbs").plan
+    env = phalanx.parallel_env(instance=instance_file)
+    env.reset()
+    moves = {(0, 1): 0, (0, -1): 1, (-1, 0): 2, (1, 0): 3, (0, 0): 4}
+    horizon = max(len(p) for p in plan)
+    for t in range(1, horizon):
+        actions = {}
+        for i, path in enumerate(plan):
+            (x0, y0), (x1, y1) = path[min(t - 1, len(path) - 1)], path[min(t, len(path) - 1)]
+            actions[f"agent_{i}"] = moves[(x1 - x0, y1 - y0)]
+        _, _, terminated, _, infos = env.step(actions)
+    assert all(terminated.values())
+    _, metrics = phalanx.validate(instance, env.world.trajectory())
+    _, planned = phalanx.validate(instance, plan)
+    assert metrics["makespan"] == planned["makespan"]
+    assert metrics["formation_loss"] == pytest.approx(planned["formation_loss"])
+    assert infos["agent_0"]["formation_loss"] == pytest.approx(0.0)
+
+
+def play(policy, env):
+    obs, _ = env.reset()
+    policy.reset()
+    while env.agents:
+        obs, *_ = env.step(policy.act(obs))
+    return env.world.trajectory()
+
+
+@pytest.mark.parametrize("name", ["pathfinding", "hrl"])
+def test_shipped_policy_in_python_plays_as_phalanx_solve(instance_file, name):
+    policy = phalanx.load_policy(name)
+    task = "meta" if name == "hrl" else name
+    trajectory = play(policy, phalanx.parallel_env(instance=instance_file, task=task))
+    solution = phalanx.solve(phalanx.read_instance(instance_file), name, rollouts=1)
+    assert solution.plan is not None
+    horizon = max(map(len, solution.plan))
+    padded = [p + [p[-1]] * (horizon - len(p)) for p in solution.plan]
+    assert trajectory == padded
+
+
+def test_the_hierarchy_refuses_a_world_that_took_other_actions(instance_file):
+    policy = phalanx.load_policy("hrl")
+    env = phalanx.parallel_env(instance=instance_file, task="meta")
+    obs, _ = env.reset()
+    actions = policy.act(obs)
+    env.step({a: (x + 1) % 4 for a, x in actions.items()})
+    with pytest.raises(phalanx.PhalanxError, match="not where the hierarchy"):
+        policy.act(env.step(actions)[0])
+    with pytest.raises(phalanx.PhalanxError, match="observations of a phalanx environment"):
+        policy.act({"agent_0": {}})
+
+
+def test_render_modes():
+    env = phalanx.parallel_env(size=16, render_mode="ansi", seed=2)
+    env.reset()
+    text = env.render()
+    assert len(text.splitlines()) == 16 and "a" in text
+    env = phalanx.parallel_env(size=16, render_mode="rgb_array", seed=2)
+    env.reset()
+    rgb = env.render()
+    assert rgb.ndim == 3 and rgb.shape[2] == 3 and rgb.dtype == np.uint8
+    env = phalanx.parallel_env(size=16, render_mode="svg", seed=2)
+    env.reset()
+    assert env.render().startswith("<svg")
+
+
+def test_bad_input_raises_with_the_rust_message(tmp_path):
+    with pytest.raises(phalanx.PhalanxError, match="task 'walk'|task \"walk\""):
+        phalanx.parallel_env(task="walk")
+    with pytest.raises(phalanx.PhalanxError, match="field of view 8"):
+        phalanx.parallel_env(fov=8)
+    with pytest.raises(ValueError, match="render_mode"):
+        phalanx.parallel_env(render_mode="opengl")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("map:\n  dimensions: [4, 4]\n  obstacles: []\nagents:\n  - name: a\n    start: [9, 0]\n    goal: [1, 1]\n")
+    with pytest.raises(phalanx.PhalanxError, match="bad.yaml"):
+        phalanx.read_instance(bad)
+    with pytest.raises(phalanx.PhalanxError, match="No such file"):
+        phalanx.parallel_env(instance=tmp_path / "missing.yaml")
+    env = phalanx.parallel_env(seed=1)
+    with pytest.raises(phalanx.PhalanxError, match="reset first"):
+        env.world.step([4, 4, 4])
+    env.reset()
+    with pytest.raises(phalanx.PhalanxError, match="action 7 is not one of 0..5"):
+        env.step({"agent_0": 7})
+    with pytest.raises(phalanx.PhalanxError, match="unknown agent"):
+        env.step({"agent_9": 1})
+    with pytest.raises(phalanx.PhalanxError, match="unknown method dijkstra"):
+        phalanx.solve(phalanx.generate(), "dijkstra")
+    with pytest.raises(phalanx.PhalanxError, match="not a positive number"):
+        phalanx.solve(phalanx.generate(), "cbs", time_limit=-1)
+    with pytest.raises(phalanx.PhalanxError, match="the plan has 1 paths"):
+        phalanx.validate(phalanx.generate(), [[(0, 0)]])
+    with pytest.raises(phalanx.PhalanxError, match="no weights"):
+        phalanx.load_policy("pathfinding", weights=tmp_path)
+    policy = phalanx.load_policy("pathfinding")
+    obs, _ = env.reset()
+    wrong = {a: dict(o, rank=np.array(0)) for a, o in obs.items()}
+    with pytest.raises(phalanx.PhalanxError, match="not a permutation"):
+        policy.act(wrong)
