@@ -4,8 +4,8 @@
     python examples/python/rllib_train.py --iterations 3
 
 One policy is shared by every agent (the agents are interchangeable, as phalanx's own
-learner shares its network). The Dict observation is flattened by RLlib's default
-connectors. On a cluster, start Ray there (`ray start --head` on one machine, `ray start
+learner shares its network). The Dict observation is flattened into one vector per agent by
+RLlib's connector `FlattenObservations`. On a cluster, start Ray there (`ray start --head` on one machine, `ray start
 --address=HEAD:6379` on the others), run this script on the head with `--address auto`
 and raise `--env-runners` to the cores you have: each env runner steps its own copies of
 the environment, and the learner gathers their samples.
@@ -18,6 +18,7 @@ import time
 
 import ray
 from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.connectors.env_to_module import FlattenObservations
 from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 from ray.tune.registry import register_env
 
@@ -48,12 +49,16 @@ def main() -> None:
     register_env("phalanx", make_env)
     env_config = {"size": args.size, "agents": args.agents}
     probe = make_env(env_config)
-    agents = list(probe.get_agent_ids())
+    agents = list(probe.possible_agents)
     config = (
         PPOConfig()
         .environment("phalanx", env_config=env_config)
         .framework("torch")
-        .env_runners(num_env_runners=args.env_runners)
+        .env_runners(
+            num_env_runners=args.env_runners,
+            # The Dict observation becomes one vector per agent (rank one-hot).
+            env_to_module_connector=lambda *_, **__: FlattenObservations(multi_agent=True),
+        )
         .training(train_batch_size=2000, minibatch_size=250, num_epochs=4, lr=3e-4)
         .multi_agent(
             policies={"shared"},

@@ -250,3 +250,21 @@ def test_bad_input_raises_with_the_rust_message(tmp_path):
     wrong = {a: dict(o, rank=np.array(0)) for a, o in obs.items()}
     with pytest.raises(phalanx.PhalanxError, match="not a permutation"):
         policy.act(wrong)
+
+
+def test_copies_of_observations_are_plain_arrays_that_stay():
+    import copy
+    import pickle
+
+    env = phalanx.parallel_env(seed=4)
+    obs, _ = env.reset()
+    kept = copy.deepcopy(obs["agent_0"])
+    pickled = pickle.loads(pickle.dumps(obs["agent_0"]))
+    assert type(kept) is dict and type(pickled) is dict
+    before = np.copy(obs["agent_0"]["agents"])
+    for _ in range(5):
+        obs, *_ = env.step({a: 3 if a == "agent_0" else 4 for a in env.agents})
+    assert not np.array_equal(obs["agent_0"]["agents"], before), "the team did not move"
+    np.testing.assert_array_equal(kept["agents"], before)
+    np.testing.assert_array_equal(pickled["agents"], before)
+    assert kept["agents"] is not obs["agent_0"]["agents"]

@@ -41,6 +41,16 @@ class AgentObservation(dict):
 
     __slots__ = ("world",)
 
+    def _copied(self) -> dict[str, np.ndarray]:
+        return {key: np.copy(value) for key, value in self.items()}
+
+    def __deepcopy__(self, memo: dict) -> dict[str, np.ndarray]:
+        # A copy is a plain dict of copied arrays: it no longer views the world.
+        return self._copied()
+
+    def __reduce__(self):
+        return (dict, (self._copied(),))
+
 
 def world_of(observation: dict[str, np.ndarray]) -> "_phalanx.World | None":
     """The world whose buffers ``observation`` (one agent's) views, if any."""
