@@ -10,7 +10,7 @@
 
 use std::path::PathBuf;
 
-use numpy::{PyArray1, PyArray2, PyArray3, PyArray4, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArray4, PyArrayMethods};
 use phalanx_core::{Action, Instance, Plan};
 use phalanx_env::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use phalanx_env::{Env, EnvConfig, Task, formation_instance};
@@ -272,14 +272,7 @@ impl World {
                 .ok_or_else(|| bad(format!("agent {agent}: action {action} is not one of 0..5")))?;
         }
         let step = self.env.step(&self.actions);
-        let out = (
-            step.terminated,
-            step.truncated,
-            step.info.formation_loss,
-            step.info.cancelled.to_vec(),
-        );
-        let rewards = step.rewards.to_vec();
-        fill(py, &self.rewards, |r| r.copy_from_slice(&rewards));
+        let out = record(py, &self.rewards, &step);
         self.after_step(py);
         Ok(out)
     }
@@ -304,14 +297,7 @@ impl World {
             return Ok(None);
         }
         let step = self.env.step_chosen();
-        let out = (
-            step.terminated,
-            step.truncated,
-            step.info.formation_loss,
-            step.info.cancelled.to_vec(),
-        );
-        let rewards = step.rewards.to_vec();
-        fill(py, &self.rewards, |r| r.copy_from_slice(&rewards));
+        let out = record(py, &self.rewards, &step);
         self.after_step(py);
         Ok(Some(out))
     }
@@ -368,16 +354,12 @@ impl World {
             rows.iter().rev().map(|row| String::from_utf8_lossy(row).into_owned()).collect();
         Ok(lines.join("\n") + "\n")
     }
+}
 
-    /// Shapes of the arrays (for checks in Python).
-    fn shapes<'py>(&self, py: Python<'py>) -> Vec<Vec<usize>> {
-        vec![
-            self.grid.bind(py).shape().to_vec(),
-            self.vector.bind(py).shape().to_vec(),
-            self.action_mask.bind(py).shape().to_vec(),
-            self.message.bind(py).shape().to_vec(),
-        ]
-    }
+/// Writes the step's rewards into `rewards`; what the step returns to Python.
+fn record(py: Python<'_>, rewards: &Py<PyArray1<f32>>, step: &phalanx_env::Step<'_>) -> StepResult {
+    fill(py, rewards, |r| r.copy_from_slice(step.rewards));
+    (step.terminated, step.truncated, step.info.formation_loss, step.info.cancelled.to_vec())
 }
 
 fn action_of(index: i64) -> Option<Action> {

@@ -149,17 +149,10 @@ class _Core:
         return None
 
 
-class ParallelEnv(_ParallelEnv):
-    """Every agent observes, then the world takes the joint action (see the module docs).
+class _Shared:
+    """What both forms share: the world and its agents' names, the spaces, rendering."""
 
-    The ``message`` of each observation is zero here, since no agent has acted when the
-    observations are made; ``rank`` is each agent's place in this step's leader order, by
-    which a policy's ``act`` lets agents choose in turn (``env()`` shows the messages).
-    """
-
-    metadata = {"name": "phalanx_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
-
-    def __init__(
+    def _setup(
         self,
         size: int = 32,
         density: float = 0.15,
@@ -176,9 +169,6 @@ class ParallelEnv(_ParallelEnv):
         )
         self.render_mode = render_mode
         self.possible_agents = list(self._core.names)
-        self.agents: list[str] = []
-        self._index = {name: i for i, name in enumerate(self.possible_agents)}
-        self._actions = [len(ACTIONS) - 1] * len(self.possible_agents)
 
     @property
     def world(self) -> _phalanx.World:
@@ -192,6 +182,29 @@ class ParallelEnv(_ParallelEnv):
     @functools.lru_cache(maxsize=None)
     def action_space(self, agent: str) -> spaces.Space:
         return self._core.action_space
+
+    def render(self) -> Any:
+        return self._core.render()
+
+    def close(self) -> None:
+        pass
+
+
+class ParallelEnv(_Shared, _ParallelEnv):
+    """Every agent observes, then the world takes the joint action (see the module docs).
+
+    The ``message`` of each observation is zero here, since no agent has acted when the
+    observations are made; ``rank`` is each agent's place in this step's leader order, by
+    which a policy's ``act`` lets agents choose in turn (``env()`` shows the messages).
+    """
+
+    metadata = {"name": "phalanx_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
+
+    def __init__(self, **settings: Any) -> None:
+        self._setup(**settings)
+        self.agents: list[str] = []
+        self._index = {name: i for i, name in enumerate(self.possible_agents)}
+        self._actions = [len(ACTIONS) - 1] * len(self.possible_agents)
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         self._core.reset(seed)
@@ -221,42 +234,21 @@ class ParallelEnv(_ParallelEnv):
             self.agents = []
         return obs, rewards, terminations, truncations, infos
 
-    def render(self) -> Any:
-        return self._core.render()
-
-    def close(self) -> None:
-        pass
-
     def state(self) -> np.ndarray:
         """The agents' cells, ``[N, 2]`` ``(x, y)``."""
         return np.array(self._core.world.positions, dtype=np.int64)
 
 
-class AECEnv(_AECEnv):
+class AECEnv(_Shared, _AECEnv):
     """Agents act one at a time in the step's leader order; each observes the actions chosen
     before it this step as its ``message``, and the world moves once every agent has chosen
     (rewards then come to every agent at once)."""
 
     metadata = {"name": "phalanx_aec_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
 
-    def __init__(
-        self,
-        size: int = 32,
-        density: float = 0.15,
-        agents: int = 3,
-        task: str = "pathfinding",
-        fov: int = 9,
-        formation_weight: float | None = None,
-        seed: int | None = None,
-        instance: str | os.PathLike | None = None,
-        render_mode: str | None = None,
-    ) -> None:
+    def __init__(self, **settings: Any) -> None:
         super().__init__()
-        self._core = _Core(
-            size, density, agents, task, fov, formation_weight, seed, instance, render_mode
-        )
-        self.render_mode = render_mode
-        self.possible_agents = list(self._core.names)
+        self._setup(**settings)
         self.agents = []
         self.rewards = {}
         self._cumulative_rewards = {}
@@ -264,19 +256,6 @@ class AECEnv(_AECEnv):
         self.truncations = {}
         self.infos = {}
         self.agent_selection = self.possible_agents[0]
-
-    @property
-    def world(self) -> _phalanx.World:
-        """The Rust environment: positions, instance, trajectory, formation loss."""
-        return self._core.world
-
-    @functools.lru_cache(maxsize=None)
-    def observation_space(self, agent: str) -> spaces.Space:
-        return self._core.observation_space
-
-    @functools.lru_cache(maxsize=None)
-    def action_space(self, agent: str) -> spaces.Space:
-        return self._core.action_space
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> None:
         self._core.reset(seed)
@@ -314,12 +293,6 @@ class AECEnv(_AECEnv):
             else:
                 self.agent_selection = self.possible_agents[self._core.world.current_agent]
         self._accumulate_rewards()
-
-    def render(self) -> Any:
-        return self._core.render()
-
-    def close(self) -> None:
-        pass
 
 
 def parallel_env(**kwargs: Any) -> ParallelEnv:
