@@ -399,12 +399,11 @@ fn write_outputs(
     phalanx_io::write_text(&out.join("cells.json"), &format!("{json}\n"))?;
     phalanx_io::write_text(&out.join(format!("{name}.md")), &report::markdown(cases, cells))?;
     let svg = out.join(format!("{name}.svg"));
-    let tmp = out.join(format!(".{name}.svg.tmp"));
     match name {
-        "pareto" => report::plot_pareto(cases, methods, cells, &tmp)?,
-        "movingai" | "files" => report::plot_table2(cases, methods, cells, &tmp)?,
-        "scaling" => report::plot_scaling(cases, methods, cells, &tmp)?,
-        _ => report::plot_table2(cases, methods, cells, &tmp)?,
+        "pareto" => report::plot_pareto(cases, methods, cells, &svg)?,
+        "movingai" | "files" => report::plot_table2(cases, methods, cells, &svg)?,
+        "scaling" => report::plot_scaling(cases, methods, cells, &svg)?,
+        _ => report::plot_table2(cases, methods, cells, &svg)?,
     }
-    std::fs::rename(&tmp, &svg).with_context(|| format!("writing {}", svg.display()))
+    Ok(())
 }

@@ -125,11 +125,11 @@ pub fn markdown(cases: &[Case], cells: &[Cell]) -> String {
     out
 }
 
-/// Writes `figure` as an SVG to `path`.
+/// Writes `figure` as an SVG to `path` (atomically).
 fn write_figure(figure: &Figure, path: &Path) -> Result<(), BenchError> {
     let plot_err = |message: String| BenchError::Plot { path: path.display().to_string(), message };
     let svg = phalanx_render::chart::chart_svg(figure).map_err(|err| plot_err(err.to_string()))?;
-    std::fs::write(path, svg).map_err(|err| plot_err(err.to_string()))
+    phalanx_io::write_text(path, &svg).map_err(|err| plot_err(err.to_string()))
 }
 
 /// A series of markers (no line) named `name`.

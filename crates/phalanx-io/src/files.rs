@@ -51,10 +51,16 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), Error> {
     write_bytes(path, text.as_bytes())
 }
 
-/// Writes `bytes` to `path` atomically: into a temporary file beside it, then renamed over
-/// it. On error the temporary file is removed and an existing file is left as it was. The
-/// file gets the usual permissions of a new file (the umask applies).
+/// Writes `bytes` to `path` atomically ([`write_atomic`]), the error naming `path`.
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), Error> {
+    write_atomic(path, bytes).map_err(|err| Error::io(path, err))
+}
+
+/// The project's one atomic write: `bytes` go into a temporary file beside `path`, which is
+/// synced and then renamed over `path`. A reader sees the old file or the new one, never a
+/// part; on error the temporary file is removed and an existing file is left as it was. The
+/// file gets the usual permissions of a new file (the umask applies).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
@@ -65,10 +71,10 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), Error> {
     // (0666 less the umask), not the private 0600 of a temporary file.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut tmp = builder.tempfile_in(dir).map_err(|err| Error::io(path, err))?;
-    tmp.write_all(bytes).map_err(|err| Error::io(path, err))?;
-    tmp.as_file().sync_all().map_err(|err| Error::io(path, err))?;
-    tmp.persist(path).map_err(|err| Error::io(path, err.error))?;
+    let mut tmp = builder.tempfile_in(dir)?;
+    tmp.write_all(bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|err| err.error)?;
     Ok(())
 }
 

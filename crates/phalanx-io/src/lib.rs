@@ -25,7 +25,7 @@ mod yaml;
 pub use error::{Error, ParseError, ParseErrorKind};
 pub use files::{
     InstanceFormat, NamedInstance, read_instance, read_map, read_plan, read_plan_for, read_text,
-    write_bytes, write_instance, write_plan, write_plan_named, write_text,
+    write_atomic, write_bytes, write_instance, write_plan, write_plan_named, write_text,
 };
 pub use map::{MovingAiMap, is_passable};
 pub use scen::{ScenEntry, Scenario, instance_from_scen};

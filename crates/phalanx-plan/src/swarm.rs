@@ -34,7 +34,7 @@ use crate::{cbs, ecbs};
 
 /// How the leader is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum LeaderRule {
+pub enum LeaderChoice {
     /// The agent whose goal is nearest (Euclidean) to the goals' centroid; ties go to the
     /// lowest index.
     #[default]
@@ -61,8 +61,8 @@ pub enum SubSolver {
 /// Settings of SWARM-MAPF-R (baselines.md §3.3; defaults there unless noted).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SwarmConfig {
-    /// Leader choice; default [`LeaderRule::Centroid`].
-    pub leader_rule: LeaderRule,
+    /// Leader choice; default [`LeaderChoice::Centroid`].
+    pub leader_choice: LeaderChoice,
     /// Extra free margin (Chebyshev radius) demanded around every slot of an OPEN cell;
     /// default 0.
     pub clearance: u32,
@@ -84,7 +84,7 @@ pub struct SwarmConfig {
 impl Default for SwarmConfig {
     fn default() -> SwarmConfig {
         SwarmConfig {
-            leader_rule: LeaderRule::Centroid,
+            leader_choice: LeaderChoice::Centroid,
             clearance: 0,
             lambda: 10.0,
             merge_gap: 2,
@@ -181,9 +181,9 @@ pub fn leader_plan(instance: &Instance, config: &SwarmConfig, leader: usize) -> 
 pub fn solve(instance: &Instance, config: &SwarmConfig, budget: &Budget) -> PlanReport {
     let started = Instant::now();
     let mut ctx = Ctx { instance, config, budget, started, stats: SearchStats::default() };
-    let result = match config.leader_rule {
-        LeaderRule::Centroid => ctx.solve_with_leader(centroid_leader(instance.goals())),
-        LeaderRule::TryAll => {
+    let result = match config.leader_choice {
+        LeaderChoice::Centroid => ctx.solve_with_leader(centroid_leader(instance.goals())),
+        LeaderChoice::TryAll => {
             let mut best: Option<(f64, Plan)> = None;
             let mut failure = PlanFailure::Unsolvable;
             for leader in 0..instance.n_agents() {

@@ -58,9 +58,10 @@ pub use hierarchy::{
 };
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
 pub use net::{EncoderConfig, QNet, QNetConfig, RecurrentState};
-pub use policy::Policy;
+pub use policy::{Policy, RecurrentStateError};
 pub use policy_file::CheckpointError;
-pub use replay::{Batch, Episode, Replay, SequenceMode};
+pub use replay::{Batch, Episode, Replay, ReplayError, SequenceMode};
+pub use resume::CollectionError;
 pub use settings::{MetaSettings, SettingsError, TrainConfig, TrainTask};
 pub use train::{Collector, MetricSink, metrics};
 pub use weight::{WeightConfig, WeightEstimate, estimate_weight};

@@ -25,6 +25,29 @@ pub struct Policy {
     state: Option<RecurrentState>,
 }
 
+/// Why a saved recurrent state does not fit a policy's network.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RecurrentStateError {
+    /// Another number of LSTM layers.
+    #[error("{found} recurrent layers, the network has {expected}")]
+    Layers {
+        /// Layers in the state.
+        found: usize,
+        /// Layers of the network.
+        expected: usize,
+    },
+    /// A layer's cell and hidden values are not whole rows of the network's width.
+    #[error("recurrent state of {cell} and {hidden} values, not rows of {width}")]
+    Shape {
+        /// Cell values.
+        cell: usize,
+        /// Hidden values.
+        hidden: usize,
+        /// The LSTM width.
+        width: usize,
+    },
+}
+
 impl Policy {
     /// Wrap a network (normally without autodiff: `net.valid()`).
     pub fn new(net: QNet, config: QNetConfig, device: &Device) -> Self {
@@ -84,28 +107,27 @@ impl Policy {
     pub(crate) fn set_recurrent_state(
         &mut self,
         layers: Option<Vec<(Vec<f32>, Vec<f32>)>>,
-    ) -> Result<(), String> {
+    ) -> Result<(), RecurrentStateError> {
         let Some(layers) = layers else {
             self.state = None;
             return Ok(());
         };
         let hidden = self.config.lstm_hidden;
         if layers.len() != self.config.lstm_layers {
-            return Err(format!(
-                "{} recurrent layers, the network has {}",
-                layers.len(),
-                self.config.lstm_layers
-            ));
+            return Err(RecurrentStateError::Layers {
+                found: layers.len(),
+                expected: self.config.lstm_layers,
+            });
         }
         let mut res = Vec::with_capacity(layers.len());
         for (cell, h) in layers {
             let rows = cell.len() / hidden;
             if cell.len() != rows * hidden || h.len() != cell.len() {
-                return Err(format!(
-                    "recurrent state of {} and {} values, not rows of {hidden}",
-                    cell.len(),
-                    h.len()
-                ));
+                return Err(RecurrentStateError::Shape {
+                    cell: cell.len(),
+                    hidden: h.len(),
+                    width: hidden,
+                });
             }
             let tensor =
                 |data| Tensor::<2>::from_data(TensorData::new(data, [rows, hidden]), &self.device);

@@ -12,7 +12,6 @@
 //! read, unchecked. A loaded network whose weights are not all finite is refused.
 
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use burn::module::{Module, ModuleVisitor, Param};
@@ -93,6 +92,14 @@ pub enum CheckpointError {
         path: PathBuf,
         /// `online` or `target`.
         section: &'static str,
+    },
+    /// The collection state cannot be saved, or does not fit the resuming run.
+    #[error("checkpoint {path}: collection state: {source}")]
+    Collection {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: crate::resume::CollectionError,
     },
     /// A tensor record does not fit the network (wrong shapes or missing parameters).
     #[error("checkpoint {path}, section {section}: {message}")]
@@ -301,21 +308,10 @@ pub(crate) fn record_error(
     CheckpointError::Record { path: path.to_path_buf(), section, message: err.to_string() }
 }
 
-/// Write `bytes` to a temporary file next to `path`, sync it, then rename it over `path`.
+/// Writes `bytes` to `path` with the project's one atomic write ([`phalanx_io::write_atomic`]).
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
-    let io_err = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| CheckpointError::Io { path, source }
-    };
-    let mut tmp_name = path.file_name().map(|it| it.to_os_string()).unwrap_or_default();
-    tmp_name.push(".tmp");
-    let tmp = path.with_file_name(tmp_name);
-    {
-        let mut file = fs::File::create(&tmp).map_err(io_err(&tmp))?;
-        file.write_all(bytes).map_err(io_err(&tmp))?;
-        file.sync_all().map_err(io_err(&tmp))?;
-    }
-    fs::rename(&tmp, path).map_err(io_err(path))
+    phalanx_io::write_atomic(path, bytes)
+        .map_err(|source| CheckpointError::Io { path: path.to_path_buf(), source })
 }
 
 #[cfg(test)]

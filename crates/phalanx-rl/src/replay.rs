@@ -42,6 +42,49 @@ pub struct Episode {
     pub seed: Option<u64>,
 }
 
+/// Why joint actions are not an episode of an environment ([`Episode::replay`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ReplayError {
+    /// The actions do not divide into joint actions of the team.
+    #[error("{actions} actions do not make joint actions of {agents}")]
+    Ragged {
+        /// Number of actions.
+        actions: usize,
+        /// Team size.
+        agents: usize,
+    },
+    /// The episode ended before the actions did.
+    #[error("the episode ended at step {step} of {steps}")]
+    EndedEarly {
+        /// The step after the end.
+        step: usize,
+        /// Steps in the actions.
+        steps: usize,
+    },
+    /// An action the environment's mask forbids.
+    #[error("step {step}: agent {agent}'s action {action} is not allowed")]
+    Masked {
+        /// The step.
+        step: usize,
+        /// The agent.
+        agent: usize,
+        /// Its action.
+        action: u8,
+    },
+    /// An episode said to have ended that was still running.
+    #[error("the episode did not end after {steps} steps")]
+    NotEnded {
+        /// Steps played.
+        steps: usize,
+    },
+    /// An episode said to be running that had ended.
+    #[error("the episode ended at step {steps}")]
+    Ended {
+        /// Steps played.
+        steps: usize,
+    },
+}
+
 impl Episode {
     /// Start an episode at its first observation.
     pub fn start(obs: &ObsBuffers) -> Self {
@@ -72,26 +115,23 @@ impl Episode {
         actions: &[u8],
         ended: bool,
         max_steps: usize,
-    ) -> Result<Episode, String> {
+    ) -> Result<Episode, ReplayError> {
         let n = env.n_agents();
         if !actions.len().is_multiple_of(n) {
-            return Err(format!("{} actions do not make joint actions of {n}", actions.len()));
+            return Err(ReplayError::Ragged { actions: actions.len(), agents: n });
         }
         let mut episode = Episode::begin(env, seed, obs);
         let steps = actions.len() / n;
         let mut end = None;
         for (t, joint) in actions.chunks(n).enumerate() {
             if end.is_some() {
-                return Err(format!("the episode ended at step {t} of {steps}"));
+                return Err(ReplayError::EndedEarly { step: t, steps });
             }
             let masked = joint.iter().enumerate().position(|(agent, &a)| {
                 !obs.mask_of(agent).get(usize::from(a)).copied().unwrap_or(false)
             });
             if let Some(agent) = masked {
-                return Err(format!(
-                    "step {t}: agent {agent}'s action {} is not allowed",
-                    joint[agent]
-                ));
+                return Err(ReplayError::Masked { step: t, agent, action: joint[agent] });
             }
             let out = env.step(joint, obs);
             episode.push_step(joint, out.team_reward, obs);
@@ -102,8 +142,8 @@ impl Episode {
         match (ended, end) {
             (true, Some(terminated)) => episode.terminated = terminated,
             (false, None) => {}
-            (true, None) => return Err(format!("the episode did not end after {steps} steps")),
-            (false, Some(_)) => return Err(format!("the episode ended at step {steps}")),
+            (true, None) => return Err(ReplayError::NotEnded { steps }),
+            (false, Some(_)) => return Err(ReplayError::Ended { steps }),
         }
         Ok(episode)
     }

@@ -10,8 +10,9 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::learner::Learner;
+use crate::policy::RecurrentStateError;
 use crate::policy_file::CheckpointError;
-use crate::replay::Episode;
+use crate::replay::{Episode, ReplayError};
 use crate::train::Collector;
 use phalanx_env::MarlEnv;
 
@@ -40,21 +41,73 @@ struct EpisodeLog {
     actions: String,
 }
 
+/// Why a collection state cannot be saved, or does not fit the run that resumes it.
+#[derive(Debug, thiserror::Error)]
+pub enum CollectionError {
+    /// An episode stored without its reset seed (by hand, not collected).
+    #[error("an episode without its reset seed cannot be saved")]
+    NoSeed,
+    /// An action too large for one base-36 digit.
+    #[error("action {0} too large")]
+    LargeAction(u8),
+    /// A saved action that is not a base-36 digit.
+    #[error("bad action {0:?}")]
+    BadAction(char),
+    /// The resuming run has other team sizes.
+    #[error("saved with environments of {saved:?} agents, resumed with {resumed:?}")]
+    Teams {
+        /// Team sizes saved.
+        saved: Vec<usize>,
+        /// Team sizes of the resuming run.
+        resumed: Vec<usize>,
+    },
+    /// The saved lists disagree on the number of environments or replay buffers.
+    #[error("inconsistent numbers of environments or replay buffers")]
+    Inconsistent,
+    /// A replay buffer of a team size no environment has.
+    #[error("no environment with teams of {agents} to rebuild their replay buffer")]
+    NoEnvironment {
+        /// The team size.
+        agents: usize,
+    },
+    /// A stored episode does not replay.
+    #[error("replay of {agents} agents, episode {episode}: {source}")]
+    Replay {
+        /// Team size of the buffer.
+        agents: usize,
+        /// Index of the episode in it.
+        episode: usize,
+        /// Why.
+        source: ReplayError,
+    },
+    /// A running episode does not replay.
+    #[error("running episode {env}: {source}")]
+    Running {
+        /// The environment.
+        env: usize,
+        /// Why.
+        source: ReplayError,
+    },
+    /// The acting policy's recurrent state does not fit its network.
+    #[error(transparent)]
+    Recurrent(#[from] RecurrentStateError),
+}
+
 impl EpisodeLog {
-    fn of(episode: &Episode) -> Result<EpisodeLog, String> {
-        let seed = episode.seed.ok_or("an episode without its reset seed cannot be saved")?;
+    fn of(episode: &Episode) -> Result<EpisodeLog, CollectionError> {
+        let seed = episode.seed.ok_or(CollectionError::NoSeed)?;
         let actions = episode
             .actions
             .iter()
-            .map(|&a| char::from_digit(u32::from(a), 36).ok_or(format!("action {a} too large")))
-            .collect::<Result<String, String>>()?;
+            .map(|&a| char::from_digit(u32::from(a), 36).ok_or(CollectionError::LargeAction(a)))
+            .collect::<Result<String, _>>()?;
         Ok(EpisodeLog { seed, actions })
     }
 
-    fn actions(&self) -> Result<Vec<u8>, String> {
+    fn actions(&self) -> Result<Vec<u8>, CollectionError> {
         self.actions
             .chars()
-            .map(|c| c.to_digit(36).map(|d| d as u8).ok_or(format!("bad action {c:?}")))
+            .map(|c| c.to_digit(36).map(|d| d as u8).ok_or(CollectionError::BadAction(c)))
             .collect()
     }
 }
@@ -64,9 +117,9 @@ impl Collection {
     pub(crate) fn of<E: MarlEnv>(
         learner: &Learner,
         collector: &Collector<E>,
-    ) -> Result<Collection, String> {
+    ) -> Result<Collection, CollectionError> {
         let log = |episodes: &mut dyn Iterator<Item = &Episode>| {
-            episodes.map(EpisodeLog::of).collect::<Result<Vec<_>, String>>()
+            episodes.map(EpisodeLog::of).collect::<Result<Vec<_>, _>>()
         };
         Ok(Collection {
             agents: collector.agents.clone(),
@@ -87,31 +140,33 @@ impl Collection {
         self,
         learner: &mut Learner,
         collector: &mut Collector<E>,
-    ) -> Result<(), String> {
+    ) -> Result<(), CollectionError> {
         if self.agents != collector.agents {
-            return Err(format!(
-                "saved with environments of {:?} agents, resumed with {:?}",
-                self.agents, collector.agents
-            ));
+            return Err(CollectionError::Teams {
+                saved: self.agents.clone(),
+                resumed: collector.agents.clone(),
+            });
         }
         let n_envs = self.agents.len();
         if self.running.len() != n_envs
             || self.collisions.len() != n_envs
             || self.replays.len() != learner.replays.len()
         {
-            return Err("inconsistent numbers of environments or replay buffers".into());
+            return Err(CollectionError::Inconsistent);
         }
         let max_steps = collector.max_steps;
         for (i, logs) in self.replays.iter().enumerate() {
             let n = learner.agent_counts[i];
-            let e = collector.agents.iter().position(|&it| it == n).ok_or(format!(
-                "no environment with teams of {n} to rebuild their replay buffer"
-            ))?;
+            let e = collector
+                .agents
+                .iter()
+                .position(|&it| it == n)
+                .ok_or(CollectionError::NoEnvironment { agents: n })?;
             let (env, obs) = (&mut collector.envs[e], &mut collector.obs[e]);
             learner.replays[i].clear();
             for (k, log) in logs.iter().enumerate() {
                 let episode = Episode::replay(env, obs, log.seed, &log.actions()?, true, max_steps)
-                    .map_err(|err| format!("replay of {n} agents, episode {k}: {err}"))?;
+                    .map_err(|source| CollectionError::Replay { agents: n, episode: k, source })?;
                 learner.replays[i].push(episode);
             }
         }
@@ -119,7 +174,7 @@ impl Collection {
         for (e, log) in self.running.iter().enumerate() {
             let (env, obs) = (&mut collector.envs[e], &mut collector.obs[e]);
             let episode = Episode::replay(env, obs, log.seed, &log.actions()?, false, max_steps)
-                .map_err(|err| format!("running episode {e}: {err}"))?;
+                .map_err(|source| CollectionError::Running { env: e, source })?;
             collector.running.push(episode);
         }
         collector.collisions = self.collisions;
@@ -146,7 +201,7 @@ impl Learner {
         collector: &Collector<E>,
     ) -> Result<(), CheckpointError> {
         let state = Collection::of(self, collector)
-            .map_err(|reason| CheckpointError::Malformed { path: path.to_path_buf(), reason })?;
+            .map_err(|source| CheckpointError::Collection { path: path.to_path_buf(), source })?;
         let json = serde_json::to_vec(&state).expect("the collection state serialises");
         self.write_checkpoint(path, Some(&json))
     }
@@ -179,7 +234,7 @@ impl Learner {
             .map_err(|err| malformed(format!("collection state: {err}")))?;
         state
             .restore(self, collector)
-            .map_err(|err| malformed(format!("collection state: {err}")))?;
+            .map_err(|source| CheckpointError::Collection { path: path.to_path_buf(), source })?;
         Ok(true)
     }
 }

@@ -122,13 +122,13 @@ fn generated_instances_give_valid_plans() {
 }
 
 #[test]
-fn budgets_and_leader_rules_are_outcomes() {
+fn budgets_and_leader_choices_are_outcomes() {
     let grid = Grid::from_fn(16, 12, |p| p.x == 8 && p.y != 6);
     let inst = Instance::new(grid, l_formation(c(1, 5)), l_formation(c(13, 5))).unwrap();
     let zero = Budget { time_limit: Some(Duration::ZERO), node_limit: None };
     let res = solve(&inst, &SwarmConfig::default(), &zero).result;
     assert!(matches!(res, Err(PlanFailure::Timeout)), "{res:?}");
-    let try_all = SwarmConfig { leader_rule: LeaderRule::TryAll, ..SwarmConfig::default() };
+    let try_all = SwarmConfig { leader_choice: LeaderChoice::TryAll, ..SwarmConfig::default() };
     let plan = solve(&inst, &try_all, &Budget::seconds(10.0)).result.unwrap();
     validate(&inst, &plan).unwrap();
     let clearance = SwarmConfig { clearance: 1, lambda: f64::INFINITY, ..SwarmConfig::default() };

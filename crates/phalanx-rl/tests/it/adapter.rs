@@ -136,6 +136,7 @@ fn an_episode_is_rebuilt_from_its_seed_and_actions() {
         // Other actions are not this episode: the replay says so instead of inventing one.
         let cut = &stored.actions[..stored.actions.len() - 3];
         let err = phalanx_rl::Episode::replay(&mut env, &mut obs, seed, cut, true, limit);
-        assert!(err.unwrap_err().contains("did not end"));
+        let steps = cut.len() / 3;
+        assert_eq!(err.unwrap_err(), phalanx_rl::ReplayError::NotEnded { steps });
     }
 }
