@@ -4,5 +4,6 @@
 
 mod brute;
 mod cbs_tests;
+mod figures;
 mod fixture;
 mod slow;
