@@ -5,8 +5,8 @@
 //! Stuckey, Ma, Koenig, AAAI 2019) for the rectangle symmetries that agents travelling side
 //! by side produce.
 //!
-//! The low level is [`crate::astar`]'s space-time A* with a conflict-avoidance table (ties
-//! towards fewer conflicts with the other agents' paths), so the root solution is often
+//! The low level is the space-time A* of [`crate::search`] with a conflict-avoidance table
+//! (ties towards fewer conflicts with the other agents' paths), so the root solution is often
 //! conflict-free already.
 //!
 //! High-level tie-breaking, explicit and deterministic: smaller `f = cost + h`, then fewer
@@ -14,8 +14,8 @@
 //! first, then semi-cardinal, then non-cardinal; among equals the earliest, then the smallest
 //! agent pair.
 //!
-//! Termination: every low-level search is finite (see [`crate::astar`]), and arrival times
-//! are bounded by `astar::joint_horizon_bound` (a plan needs fewer steps than there
+//! Termination: every low-level search is finite (see [`crate::search`]), and arrival times
+//! are bounded by `search::joint_horizon_bound` (a plan needs fewer steps than there
 //! are joint placements), so on small unsolvable instances the constraint tree is finite and
 //! CBS returns `Unsolvable`; on large ones the budget ends it.
 //!
@@ -39,11 +39,12 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::rc::Rc;
 
-use phalanx_core::{DistanceMap, Instance};
+use phalanx_core::{AgentId, Instance};
 use rustc_hash::FxHashMap;
 
-use crate::astar::{
-    self, ConflictTable, Constraints, LowLevel, LowResult, Mdd, MddScratch, Query, at, path_cost,
+use crate::search::{
+    self, AStarOrder, Agents, Conflict, ConflictKind, ConflictTable, Constraint, Constraints,
+    LowLevel, LowResult, Mdd, MddQuery, MddScratch, Path, at, conflicts, path_cost,
 };
 use crate::{Budget, BudgetClock, PlanFailure, PlanReport, SearchStats};
 
@@ -106,65 +107,13 @@ pub fn solve(instance: &Instance, config: &CbsConfig, budget: &Budget) -> PlanRe
     let res = search.run();
     search.stats.runtime_s = clock.elapsed_s();
     PlanReport {
-        result: res.map(|paths| astar::paths_to_plan(instance.grid(), &paths)),
+        result: res.map(|paths| search::paths_to_plan(instance.grid(), &paths)),
         stats: search.stats,
     }
 }
 
-/// A constraint added at a constraint-tree node.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum NewConstraint {
-    Vertex {
-        cell: u32,
-        t: u32,
-    },
-    Edge {
-        from: u32,
-        to: u32,
-        t: u32,
-    },
-    /// The cell is forbidden from `t` on (target reasoning).
-    BlockedFrom {
-        cell: u32,
-        t: u32,
-    },
-    /// The agent finishes at `t` or later (target reasoning).
-    FinishNotBefore {
-        t: u32,
-    },
-}
-
-impl NewConstraint {
-    fn apply(self, constraints: &mut Constraints) {
-        match self {
-            NewConstraint::Vertex { cell, t } => constraints.add_vertex(cell, t),
-            NewConstraint::Edge { from, to, t } => constraints.add_edge(from, to, t),
-            NewConstraint::BlockedFrom { cell, t } => constraints.block_from(cell, t),
-            NewConstraint::FinishNotBefore { t } => constraints.finish_not_before(t),
-        }
-    }
-}
-
 /// The branches of a split: per child, the agent and the constraints added to it.
-type Branches = Vec<(u32, Vec<NewConstraint>)>;
-
-/// Kinds of conflicts between two agents' paths.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-enum ConflictKind {
-    /// Both at `cell` at `t`.
-    Vertex { cell: u32 },
-    /// `a1` moves `from -> to` arriving at `t` while `a2` moves `to -> from`.
-    Edge { from: u32, to: u32 },
-}
-
-/// A conflict; `a1 < a2`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Conflict {
-    a1: u32,
-    a2: u32,
-    t: u32,
-    kind: ConflictKind,
-}
+type Branches = Vec<(AgentId, Vec<Constraint>)>;
 
 /// Cardinality classes, most important first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -176,11 +125,11 @@ enum Cardinality {
 
 #[derive(Debug, Clone)]
 struct CtNode {
-    parent: u32,
-    /// The agent whose constraints this node adds to (`u32::MAX` at the root).
-    agent: u32,
-    constraints: Vec<NewConstraint>,
-    paths: Vec<Rc<Vec<u32>>>,
+    parent: Option<u32>,
+    /// The agent whose constraints this node adds to (`None` at the root).
+    agent: Option<AgentId>,
+    constraints: Vec<Constraint>,
+    paths: Vec<Rc<Path>>,
     /// Per agent: the nearest ancestor-or-self node that constrains it (its MDD cache key).
     cons_origin: Rc<Vec<u32>>,
     cost: u32,
@@ -194,14 +143,12 @@ struct Search<'a> {
     config: &'a CbsConfig,
     clock: BudgetClock,
     stats: SearchStats,
-    dists: Vec<DistanceMap>,
-    starts: Vec<u32>,
-    goals: Vec<u32>,
-    low: LowLevel<'a>,
+    agents: Agents,
+    low: LowLevel<'a, AStarOrder>,
     nodes: Vec<CtNode>,
     open: BinaryHeap<Reverse<(u32, u32, Reverse<u32>)>>,
-    max_time: u32,
-    mdds: FxHashMap<(u32, u32), Rc<Mdd>>,
+    /// MDDs by (the node that last constrained the agent, the agent).
+    mdds: FxHashMap<(u32, AgentId), Rc<Mdd>>,
     scratch: MddScratch,
 }
 
@@ -213,13 +160,10 @@ impl<'a> Search<'a> {
             config,
             clock,
             stats: SearchStats::default(),
-            dists: instance.goals().iter().map(|&g| DistanceMap::bfs(grid, g)).collect(),
-            starts: instance.starts().iter().map(|&c| grid.id(c).0).collect(),
-            goals: instance.goals().iter().map(|&c| grid.id(c).0).collect(),
-            low: LowLevel::new(grid),
+            agents: Agents::of(instance),
+            low: LowLevel::new(grid, AStarOrder::default()),
             nodes: Vec::new(),
             open: BinaryHeap::new(),
-            max_time: astar::joint_horizon_bound(instance),
             mdds: FxHashMap::default(),
             scratch: MddScratch::new(),
         }
@@ -230,69 +174,53 @@ impl<'a> Search<'a> {
     }
 
     /// The constraints of `agent` at `node`.
-    fn constraints_of(&self, node: u32, agent: u32) -> Constraints {
+    fn constraints_of(&self, node: u32, agent: AgentId) -> Constraints {
         let mut res = Constraints::default();
-        let mut idx = node;
-        while idx != u32::MAX {
+        let mut next = Some(node);
+        while let Some(idx) = next {
             let n = &self.nodes[idx as usize];
-            if n.agent == agent {
+            if n.agent == Some(agent) {
                 for &c in &n.constraints {
-                    c.apply(&mut res);
+                    res.add(c);
                 }
             }
-            idx = n.parent;
+            next = n.parent;
         }
         res
     }
 
     fn plan_agent(
         &mut self,
-        agent: u32,
+        agent: AgentId,
         constraints: &Constraints,
-        others: &[Rc<Vec<u32>>],
-    ) -> Result<Option<Vec<u32>>, PlanFailure> {
-        let cat = self.config.conflict_avoidance.then(|| {
-            ConflictTable::of_paths(
-                others
-                    .iter()
-                    .enumerate()
-                    .filter(|&(a, p)| a as u32 != agent && !p.is_empty())
-                    .map(|(_, p)| p.as_slice()),
-            )
-        });
-        let query = Query {
-            start: self.starts[agent as usize],
-            goal: self.goals[agent as usize],
-            dist: self.dists[agent as usize].as_slice(),
-            constraints,
-            cat: cat.as_ref(),
-            max_time: self.max_time,
-            node_limit: None,
-        };
+        others: &[Rc<Path>],
+    ) -> Result<Option<Path>, PlanFailure> {
+        let cat = self.config.conflict_avoidance.then(|| ConflictTable::of_others(others, agent));
+        let query = self.agents.query(agent, constraints, cat.as_ref());
         match self.low.search(&query, &self.clock, &mut self.stats.low_level_expanded) {
-            LowResult::Found(path) => Ok(Some(path)),
+            LowResult::Found { path, .. } => Ok(Some(path)),
             LowResult::Infeasible => Ok(None),
             LowResult::Timeout => Err(PlanFailure::Timeout),
             LowResult::NodeLimit => Err(PlanFailure::NodeLimit),
         }
     }
 
-    fn run(&mut self) -> Result<Vec<Vec<u32>>, PlanFailure> {
+    fn run(&mut self) -> Result<Vec<Path>, PlanFailure> {
         let n_agents = self.n_agents();
         // Root: plan agents one by one, each avoiding conflicts with the earlier ones.
-        let mut paths: Vec<Rc<Vec<u32>>> = (0..n_agents).map(|_| Rc::new(Vec::new())).collect();
+        let mut paths: Vec<Rc<Path>> = (0..n_agents).map(|_| Rc::new(Vec::new())).collect();
         let empty = Constraints::default();
-        for agent in 0..n_agents as u32 {
-            match self.plan_agent(agent, &empty, &paths)? {
-                Some(path) => paths[agent as usize] = Rc::new(path),
+        for a in 0..n_agents {
+            match self.plan_agent(AgentId(a as u16), &empty, &paths)? {
+                Some(path) => paths[a] = Rc::new(path),
                 None => return Err(PlanFailure::Unsolvable),
             }
         }
         let cost = paths.iter().map(|p| path_cost(p)).sum();
-        let n_conflicts = count_conflicts(&paths);
+        let n_conflicts = conflicts(&paths).len() as u32;
         self.nodes.push(CtNode {
-            parent: u32::MAX,
-            agent: u32::MAX,
+            parent: None,
+            agent: None,
             constraints: Vec::new(),
             paths,
             cons_origin: Rc::new(vec![0; n_agents]),
@@ -330,9 +258,9 @@ impl<'a> Search<'a> {
     /// Expands node `idx`: picks a conflict, bypasses when possible, else pushes children.
     fn expand(&mut self, idx: u32) -> Result<(), PlanFailure> {
         loop {
-            let conflicts = all_conflicts(&self.nodes[idx as usize].paths);
-            debug_assert!(!conflicts.is_empty());
-            let (conflict, class) = self.choose_conflict(idx, &conflicts)?;
+            let found = conflicts(&self.nodes[idx as usize].paths);
+            debug_assert!(!found.is_empty());
+            let (conflict, class) = self.choose_conflict(idx, &found)?;
             let parent_cost = self.nodes[idx as usize].cost;
             let parent_conflicts = self.nodes[idx as usize].n_conflicts;
             let mut children = Vec::with_capacity(2);
@@ -342,17 +270,17 @@ impl<'a> Search<'a> {
             };
             for (agent, new_constraints) in branches {
                 if let Some(child) = self.make_child(idx, agent, new_constraints)? {
-                    children.push(child);
+                    children.push((agent, child));
                 }
             }
             if self.config.bypass && class != Cardinality::Cardinal {
                 let bypass = children
                     .iter()
-                    .position(|c| c.cost == parent_cost && c.n_conflicts < parent_conflicts);
+                    .position(|(_, c)| c.cost == parent_cost && c.n_conflicts < parent_conflicts);
                 if let Some(i) = bypass {
-                    let child = children.swap_remove(i);
+                    let (agent, child) = children.swap_remove(i);
                     let node = &mut self.nodes[idx as usize];
-                    node.paths[child.agent as usize] = child.paths[child.agent as usize].clone();
+                    node.paths[agent.index()] = child.paths[agent.index()].clone();
                     node.n_conflicts = child.n_conflicts;
                     if node.n_conflicts == 0 {
                         // Re-push: the next pop returns it as the solution.
@@ -363,7 +291,7 @@ impl<'a> Search<'a> {
                     continue;
                 }
             }
-            for child in children {
+            for (_, child) in children {
                 let f = child.cost + child.h;
                 let n_conflicts = child.n_conflicts;
                 let child_idx = self.nodes.len() as u32;
@@ -381,14 +309,14 @@ impl<'a> Search<'a> {
             return None;
         }
         let ConflictKind::Vertex { cell } = conflict.kind else { return None };
+        let goals = &self.agents.goals;
         let goal_conflict =
-            cell == self.goals[conflict.a1 as usize] || cell == self.goals[conflict.a2 as usize];
+            cell == goals[conflict.a1.index()] || cell == goals[conflict.a2.index()];
         if goal_conflict && self.config.target_reasoning {
             return None;
         }
         let node = &self.nodes[idx as usize];
-        let paths: [&[u32]; 2] =
-            [&node.paths[conflict.a1 as usize], &node.paths[conflict.a2 as usize]];
+        let paths: [&[_]; 2] = [&node.paths[conflict.a1.index()], &node.paths[conflict.a2.index()]];
         let barriers = rectangle::barriers(self.instance.grid(), paths, cell, conflict.t)?;
         // Each child excludes its agent's current path, so the split makes progress.
         debug_assert!(
@@ -396,8 +324,8 @@ impl<'a> Search<'a> {
             "a barrier misses its agent's current path"
         );
         let [b1, b2] = barriers;
-        let to_cons = |b: Vec<(u32, u32)>| {
-            b.into_iter().map(|(cell, t)| NewConstraint::Vertex { cell, t }).collect()
+        let to_cons = |b: Vec<(_, u32)>| {
+            b.into_iter().map(|(cell, t)| Constraint::Vertex { cell, t }).collect()
         };
         Some(vec![(conflict.a1, to_cons(b1)), (conflict.a2, to_cons(b2))])
     }
@@ -410,41 +338,32 @@ impl<'a> Search<'a> {
             && let ConflictKind::Vertex { cell } = conflict.kind
         {
             for (parked, other) in [(conflict.a2, conflict.a1), (conflict.a1, conflict.a2)] {
-                if cell == self.goals[parked as usize]
-                    && t >= path_cost(&node.paths[parked as usize])
+                if cell == self.agents.goals[parked.index()]
+                    && t >= path_cost(&node.paths[parked.index()])
                 {
                     // Either `parked` arrives for good after `t`, or it is on its goal from
                     // `t` on and `other` must keep off it from then.
                     return vec![
-                        (parked, vec![NewConstraint::FinishNotBefore { t: t + 1 }]),
-                        (other, vec![NewConstraint::BlockedFrom { cell, t }]),
+                        (parked, vec![Constraint::FinishNotBefore { t: t + 1 }]),
+                        (other, vec![Constraint::BlockedFrom { cell, t }]),
                     ];
                 }
             }
         }
-        match conflict.kind {
-            ConflictKind::Vertex { cell } => vec![
-                (conflict.a1, vec![NewConstraint::Vertex { cell, t }]),
-                (conflict.a2, vec![NewConstraint::Vertex { cell, t }]),
-            ],
-            ConflictKind::Edge { from, to } => vec![
-                (conflict.a1, vec![NewConstraint::Edge { from, to, t }]),
-                (conflict.a2, vec![NewConstraint::Edge { from: to, to: from, t }]),
-            ],
-        }
+        conflict.split().into_iter().map(|(agent, c)| (agent, vec![c])).collect()
     }
 
     fn make_child(
         &mut self,
         parent: u32,
-        agent: u32,
-        new_constraints: Vec<NewConstraint>,
+        agent: AgentId,
+        new_constraints: Vec<Constraint>,
     ) -> Result<Option<CtNode>, PlanFailure> {
         let child_idx = self.nodes.len() as u32;
         let p = &self.nodes[parent as usize];
         let mut constraints = self.constraints_of(parent, agent);
         for &c in &new_constraints {
-            c.apply(&mut constraints);
+            constraints.add(c);
         }
         let paths = p.paths.clone();
         let parent_f = p.cost + p.h;
@@ -453,14 +372,14 @@ impl<'a> Search<'a> {
             return Ok(None);
         };
         let mut paths = paths;
-        let old_cost = path_cost(&paths[agent as usize]);
+        let old_cost = path_cost(&paths[agent.index()]);
         let cost = self.nodes[parent as usize].cost - old_cost + path_cost(&path);
-        paths[agent as usize] = Rc::new(path);
-        cons_origin[agent as usize] = child_idx;
-        let n_conflicts = count_conflicts(&paths);
+        paths[agent.index()] = Rc::new(path);
+        cons_origin[agent.index()] = child_idx;
+        let n_conflicts = conflicts(&paths).len() as u32;
         Ok(Some(CtNode {
-            parent,
-            agent,
+            parent: Some(parent),
+            agent: Some(agent),
             constraints: new_constraints,
             paths,
             cons_origin: Rc::new(cons_origin),
@@ -473,24 +392,22 @@ impl<'a> Search<'a> {
     }
 
     /// The MDD of `agent` at node `idx` (cached by the node that last constrained it).
-    fn mdd(&mut self, idx: u32, agent: u32) -> Result<Rc<Mdd>, PlanFailure> {
-        let origin = self.nodes[idx as usize].cons_origin[agent as usize];
+    fn mdd(&mut self, idx: u32, agent: AgentId) -> Result<Rc<Mdd>, PlanFailure> {
+        let a = agent.index();
+        let origin = self.nodes[idx as usize].cons_origin[a];
         if let Some(mdd) = self.mdds.get(&(origin, agent)) {
             return Ok(mdd.clone());
         }
         let constraints = self.constraints_of(idx, agent);
-        let cost = path_cost(&self.nodes[idx as usize].paths[agent as usize]);
-        let mdd = Mdd::build(
-            self.instance.grid(),
-            self.starts[agent as usize],
-            self.goals[agent as usize],
-            cost,
-            self.dists[agent as usize].as_slice(),
-            &constraints,
-            &self.clock,
-            &mut self.scratch,
-        )
-        .ok_or(PlanFailure::Timeout)?;
+        let query = MddQuery {
+            start: self.agents.starts[a],
+            goal: self.agents.goals[a],
+            cost: path_cost(&self.nodes[idx as usize].paths[a]),
+            dist: self.agents.dists[a].as_slice(),
+            constraints: &constraints,
+        };
+        let mdd = Mdd::build(self.instance.grid(), &query, &self.clock, &mut self.scratch)
+            .ok_or(PlanFailure::Timeout)?;
         let mdd = Rc::new(mdd);
         self.mdds.insert((origin, agent), mdd.clone());
         Ok(mdd)
@@ -519,9 +436,9 @@ impl<'a> Search<'a> {
         idx: u32,
         conflicts: &[Conflict],
     ) -> Result<(Conflict, Cardinality), PlanFailure> {
-        let first = |c: &Conflict| (c.t, c.a1, c.a2, c.kind);
+        let first = Conflict::earliest_key;
         if !self.config.prioritize_conflicts {
-            let best = conflicts.iter().min_by_key(|c| first(c)).copied().expect("a conflict");
+            let best = Conflict::earliest(conflicts).expect("a conflict");
             return Ok((best, Cardinality::NonCardinal));
         }
         let mut best: Option<(Cardinality, Conflict)> = None;
@@ -543,9 +460,9 @@ impl<'a> Search<'a> {
     /// conflict (exact for up to 16 agents in the graph, else a maximal matching, which is a
     /// lower bound too).
     fn cg_heuristic(&mut self, idx: u32) -> Result<u32, PlanFailure> {
-        let conflicts = all_conflicts(&self.nodes[idx as usize].paths);
-        let mut edges: Vec<(u32, u32)> = Vec::new();
-        for c in &conflicts {
+        let found = conflicts(&self.nodes[idx as usize].paths);
+        let mut edges: Vec<(AgentId, AgentId)> = Vec::new();
+        for c in &found {
             if edges.last() == Some(&(c.a1, c.a2)) || edges.contains(&(c.a1, c.a2)) {
                 continue;
             }
@@ -558,15 +475,15 @@ impl<'a> Search<'a> {
 }
 
 /// Minimum vertex cover size (exact up to 16 vertices, else a maximal matching's size).
-fn min_vertex_cover(edges: &[(u32, u32)]) -> u32 {
+fn min_vertex_cover(edges: &[(AgentId, AgentId)]) -> u32 {
     if edges.is_empty() {
         return 0;
     }
-    let mut vertices: Vec<u32> = edges.iter().flat_map(|&(a, b)| [a, b]).collect();
+    let mut vertices: Vec<AgentId> = edges.iter().flat_map(|&(a, b)| [a, b]).collect();
     vertices.sort_unstable();
     vertices.dedup();
     if vertices.len() > 16 {
-        let mut used: Vec<u32> = Vec::new();
+        let mut used: Vec<AgentId> = Vec::new();
         let mut size = 0;
         for &(a, b) in edges {
             if !used.contains(&a) && !used.contains(&b) {
@@ -576,7 +493,7 @@ fn min_vertex_cover(edges: &[(u32, u32)]) -> u32 {
         }
         return size;
     }
-    let pos = |v: u32| vertices.binary_search(&v).expect("vertex") as u32;
+    let pos = |v: AgentId| vertices.binary_search(&v).expect("vertex") as u32;
     let masks: Vec<(u32, u32)> = edges.iter().map(|&(a, b)| (1 << pos(a), 1 << pos(b))).collect();
     let mut best = vertices.len() as u32;
     for set in 0u32..(1 << vertices.len()) {
@@ -586,34 +503,6 @@ fn min_vertex_cover(edges: &[(u32, u32)]) -> u32 {
         }
     }
     best
-}
-
-/// Every conflict between every pair of paths (vertex before edge at each time).
-fn all_conflicts(paths: &[Rc<Vec<u32>>]) -> Vec<Conflict> {
-    let mut res = Vec::new();
-    for a1 in 0..paths.len() {
-        for a2 in a1 + 1..paths.len() {
-            pair_conflicts(a1 as u32, a2 as u32, &paths[a1], &paths[a2], &mut res);
-        }
-    }
-    res
-}
-
-fn count_conflicts(paths: &[Rc<Vec<u32>>]) -> u32 {
-    all_conflicts(paths).len() as u32
-}
-
-fn pair_conflicts(a1: u32, a2: u32, p1: &[u32], p2: &[u32], out: &mut Vec<Conflict>) {
-    let horizon = p1.len().max(p2.len()) as u32;
-    for t in 1..horizon {
-        let (u1, v1) = (at(p1, t - 1), at(p1, t));
-        let (u2, v2) = (at(p2, t - 1), at(p2, t));
-        if v1 == v2 {
-            out.push(Conflict { a1, a2, t, kind: ConflictKind::Vertex { cell: v1 } });
-        } else if u1 == v2 && u2 == v1 {
-            out.push(Conflict { a1, a2, t, kind: ConflictKind::Edge { from: u1, to: v1 } });
-        }
-    }
 }
 
 #[cfg(test)]

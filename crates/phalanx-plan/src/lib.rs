@@ -1,13 +1,17 @@
 //! Classical multi-agent path-finding planners of phalanx, one module per algorithm, each with
 //! a free-function entry point `solve(&Instance, &Config, &Budget) -> PlanReport`:
 //!
-//! - [`astar`], space-time A* (the low level of CBS/ECBS) and prioritised planning;
+//! - [`astar`], prioritised planning on space-time A*;
 //! - [`cbs`], Conflict-Based Search, optimal for the sum of costs, with the ICBS improvements,
 //!   the CG heuristic, target and rectangle (symmetry) reasoning and a conflict-avoidance table;
 //! - [`ecbs`], bounded-suboptimal Enhanced CBS (focal search);
 //! - [`joint_astar`], joint-state A*;
 //! - [`swarm`], SWARM-MAPF-R, a reconstruction of SWARM-MAPF;
 //! - [`planner`], one closed [`PlannerChoice`] over all of them and [`run_planner`].
+//!
+//! Space-time A*, CBS and ECBS share one search core (the private module `search`): one
+//! type of constraints, one conflict type and its detection, one conflict-avoidance table,
+//! one MDD, and one low-level search ordered as A* or as focal search.
 //!
 //! Planners never panic on an unsolvable instance, a timeout or a node limit: those are
 //! [`PlanFailure`] outcomes, and [`SearchStats`] always come back.
@@ -31,6 +35,7 @@ pub mod cbs;
 pub mod ecbs;
 pub mod joint_astar;
 pub mod planner;
+mod search;
 pub mod swarm;
 
 pub use budget::{Budget, BudgetClock, PlanFailure, PlanReport, SearchStats};

@@ -26,7 +26,7 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::time::{Duration, Instant};
 
-use phalanx_core::{Cell, DistanceMap, Grid, Instance, Plan, PlanMetrics, validate};
+use phalanx_core::{Cell, CellId, DistanceMap, Grid, Instance, Plan, PlanMetrics, validate};
 
 use crate::joint_astar::{self, JointAStarConfig, Objective};
 use crate::{Budget, PlanFailure, PlanReport, SearchStats};
@@ -246,22 +246,22 @@ fn leader_path(
     dist.get(start)?;
     let n = grid.n_cells();
     let mut g = vec![u64::MAX; n];
-    let mut parent = vec![u32::MAX; n];
+    let mut parent: Vec<Option<CellId>> = vec![None; n];
     let mut heap = BinaryHeap::new();
     let sid = grid.id(start);
     g[sid.index()] = 0;
-    heap.push((Reverse(h(start)), 0u64, Reverse(sid.0)));
+    heap.push((Reverse(h(start)), 0u64, Reverse(sid)));
     while let Some((_, cost, Reverse(id))) = heap.pop() {
-        if cost != g[id as usize] {
+        if cost != g[id.index()] {
             continue;
         }
-        let cell = grid.cell(phalanx_core::CellId(id));
+        let cell = grid.cell(id);
         if cell == goal {
             let mut path = vec![cell];
             let mut cur = id;
-            while parent[cur as usize] != u32::MAX {
-                cur = parent[cur as usize];
-                path.push(grid.cell(phalanx_core::CellId(cur)));
+            while let Some(up) = parent[cur.index()] {
+                cur = up;
+                path.push(grid.cell(cur));
             }
             path.reverse();
             return Some(path);
@@ -272,8 +272,8 @@ fn leader_path(
             let ng = cost.saturating_add(step);
             if ng < g[nid.index()] {
                 g[nid.index()] = ng;
-                parent[nid.index()] = id;
-                heap.push((Reverse(ng.saturating_add(h(next))), ng, Reverse(nid.0)));
+                parent[nid.index()] = Some(id);
+                heap.push((Reverse(ng.saturating_add(h(next))), ng, Reverse(nid)));
             }
         }
     }

@@ -11,20 +11,20 @@
 //! So every conflict-free solution avoids one of the two barriers, which makes the split
 //! sound and keeps CBS optimal.
 
-use phalanx_core::Grid;
+use phalanx_core::{CellId, Grid};
 
-use crate::astar::at;
+use crate::search::at;
 
 /// The barriers `[of agent 0, of agent 1]` as `(cell, t)` vertex constraints, or `None` when
 /// the conflict at `(v, t)` is not a start-based rectangle conflict.
 pub(super) fn barriers(
     grid: &Grid,
-    paths: [&[u32]; 2],
-    v: u32,
+    paths: [&[CellId]; 2],
+    v: CellId,
     t: u32,
-) -> Option<[Vec<(u32, u32)>; 2]> {
+) -> Option<[Vec<(CellId, u32)>; 2]> {
     let width = grid.width() as i32;
-    let xy = |id: u32| ((id as i32) % width, (id as i32) / width);
+    let xy = |id: CellId| ((id.0 as i32) % width, (id.0 as i32) / width);
     let (vx, vy) = xy(v);
     let starts = [xy(paths[0][0]), xy(paths[1][0])];
     // Both must reach v at t along Manhattan-monotone paths from their starts.
@@ -63,7 +63,7 @@ pub(super) fn barriers(
     let rs = (s[b].0, s[l].1);
     let v_n = norm((vx, vy));
     // Monotone prefixes (each step +X or +Y) and their ends.
-    let prefix = |path: &[u32]| -> Vec<(i32, i32)> {
+    let prefix = |path: &[CellId]| -> Vec<(i32, i32)> {
         let mut res = vec![norm(xy(path[0]))];
         for &cell in &path[1..] {
             let p = norm(xy(cell));
@@ -90,11 +90,11 @@ pub(super) fn barriers(
         v_n
     };
     debug_assert!(crosses(v_n), "the conflict cell is on both barriers");
-    let cell_of = |(x, y): (i32, i32)| -> Option<u32> {
+    let cell_of = |(x, y): (i32, i32)| -> Option<CellId> {
         let (x, y) = (x * dx, y * dy);
         (x >= 0 && y >= 0 && x < width && y < grid.height() as i32)
-            .then(|| (y * width + x) as u32)
-            .filter(|&id| !grid.is_blocked_id(phalanx_core::CellId(id)))
+            .then(|| CellId((y * width + x) as u32))
+            .filter(|&id| !grid.is_blocked_id(id))
     };
     let mut res = [Vec::new(), Vec::new()];
     for y in rs.1..=rg.1 {

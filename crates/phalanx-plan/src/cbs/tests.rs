@@ -4,17 +4,20 @@ use super::*;
 
 #[test]
 fn vertex_cover_sizes() {
+    let edges = |pairs: &[(u16, u16)]| -> Vec<(AgentId, AgentId)> {
+        pairs.iter().map(|&(a, b)| (AgentId(a), AgentId(b))).collect()
+    };
     assert_eq!(min_vertex_cover(&[]), 0);
-    assert_eq!(min_vertex_cover(&[(0, 1)]), 1);
-    assert_eq!(min_vertex_cover(&[(0, 1), (1, 2), (0, 2)]), 2);
-    assert_eq!(min_vertex_cover(&[(0, 1), (0, 2), (0, 3)]), 1);
+    assert_eq!(min_vertex_cover(&edges(&[(0, 1)])), 1);
+    assert_eq!(min_vertex_cover(&edges(&[(0, 1), (1, 2), (0, 2)])), 2);
+    assert_eq!(min_vertex_cover(&edges(&[(0, 1), (0, 2), (0, 3)])), 1);
 }
 
 #[test]
 fn rectangle_barriers_cover_the_conflict() {
     // 6x6 open grid; ids are y * 6 + x.
     let grid = phalanx_core::Grid::new(6, 6);
-    let id = |x: u32, y: u32| y * 6 + x;
+    let id = |x: u32, y: u32| phalanx_core::CellId(y * 6 + x);
     // Agent 0 enters from the left along y = 2, agent 1 from the bottom along x = 2; both
     // reach (2, 2) at t = 2, then continue monotonically up and right.
     let p0 = vec![id(0, 2), id(1, 2), id(2, 2), id(3, 2), id(3, 3), id(4, 3), id(4, 4)];
@@ -25,8 +28,8 @@ fn rectangle_barriers_cover_the_conflict() {
     assert_eq!(b0, vec![(id(3, 2), 3), (id(3, 3), 4), (id(3, 4), 5)]);
     assert_eq!(b1, vec![(id(2, 4), 4), (id(3, 4), 5)]);
     // Each barrier excludes the agent's current path.
-    assert!(b0.iter().any(|&(c, t)| astar::at(&p0, t) == c));
-    assert!(b1.iter().any(|&(c, t)| astar::at(&p1, t) == c));
+    assert!(b0.iter().any(|&(c, t)| search::at(&p0, t) == c));
+    assert!(b1.iter().any(|&(c, t)| search::at(&p1, t) == c));
     // A wait before the conflict breaks the Manhattan condition.
     let waiting = vec![id(0, 2), id(0, 2), id(1, 2), id(2, 2)];
     assert!(rectangle::barriers(&grid, [&waiting, &p1], id(2, 2), 3).is_none());

@@ -126,5 +126,6 @@ fn search_figures_stay_as_they_are() {
         cbs:plain    soc  480 makespan 120 hl    43 ll   11015
         ecbs:1.2     soc  481 makespan 121 hl     0 ll     481
         ecbs:1.5     soc  481 makespan 121 hl     0 ll     481
-    "#]].assert_eq(&table);
+    "#]]
+    .assert_eq(&table);
 }
