@@ -62,6 +62,7 @@ const PYO3_FREE: &[&str] = &[
     "phalanx-rl",
     "phalanx-eval",
     "phalanx-cli",
+    "phalanx-fuzz",
 ];
 
 fn deps() -> anyhow::Result<()> {

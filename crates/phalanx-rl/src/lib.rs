@@ -57,7 +57,7 @@ pub use hierarchy::{
     ScriptedMeta,
 };
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
-pub use net::{EncoderConfig, QNet, QNetConfig, RecurrentState};
+pub use net::{EncoderConfig, NetConfigError, QNet, QNetConfig, RecurrentState};
 pub use policy::{Policy, RecurrentStateError};
 pub use policy_file::CheckpointError;
 pub use replay::{Batch, Episode, Replay, ReplayError, SequenceMode};

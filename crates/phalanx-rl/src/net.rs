@@ -40,6 +40,25 @@ pub enum EncoderConfig {
     },
 }
 
+/// Why a network configuration cannot be built ([`QNetConfig::check`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum NetConfigError {
+    /// A size that is zero or above [`QNetConfig::MAX_SIZE`].
+    #[error("network {field} {value} must be between 1 and {}", QNetConfig::MAX_SIZE)]
+    Size {
+        /// The field.
+        field: &'static str,
+        /// Its value.
+        value: usize,
+    },
+    /// The field of view must be odd (the agent at its centre).
+    #[error("network fov {0} must be odd")]
+    EvenFov(usize),
+    /// The number of weights overflows.
+    #[error("the network has too many weights")]
+    TooLarge,
+}
+
 /// Sizes of the Q-network (a settings file may give any subset of the fields).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -103,7 +122,95 @@ impl QNetConfig {
         self.n_agents_max * self.n_actions
     }
 
+    /// The largest width, channel count or layer count a network may have: far beyond any
+    /// network phalanx trains (the paper's widest layer is 256), small enough that a corrupt
+    /// file cannot ask for a network that does not fit in memory.
+    pub const MAX_SIZE: usize = 1 << 14;
+
+    /// Checks that the network can be built: an odd field of view, at least one LSTM layer
+    /// and one encoder layer, no size zero or above [`QNetConfig::MAX_SIZE`].
+    ///
+    /// # Errors
+    /// Names the first field that does not fit.
+    pub fn check(&self) -> Result<(), NetConfigError> {
+        let (widths, layers): (Vec<(&'static str, usize)>, usize) = match &self.encoder {
+            EncoderConfig::Mlp { hidden } => {
+                (hidden.iter().map(|&w| ("encoder.hidden", w)).collect(), hidden.len())
+            }
+            EncoderConfig::Conv { channels, hidden } => {
+                let mut widths: Vec<_> =
+                    channels.iter().map(|&c| ("encoder.channels", c)).collect();
+                widths.push(("encoder.hidden", *hidden));
+                (widths, channels.len() + 1)
+            }
+        };
+        let sizes = [
+            ("channels", self.channels),
+            ("fov", self.fov),
+            ("env_vec", self.env_vec),
+            ("n_agents_max", self.n_agents_max),
+            ("n_actions", self.n_actions),
+            ("lstm_hidden", self.lstm_hidden),
+            ("lstm_layers", self.lstm_layers),
+            ("head_hidden", self.head_hidden),
+            ("encoder layers", layers),
+        ];
+        for (field, value) in sizes.into_iter().chain(widths) {
+            if value == 0 || value > Self::MAX_SIZE {
+                return Err(NetConfigError::Size { field, value });
+            }
+        }
+        if self.fov.is_multiple_of(2) {
+            return Err(NetConfigError::EvenFov(self.fov));
+        }
+        if self.n_params().is_none() {
+            return Err(NetConfigError::TooLarge);
+        }
+        Ok(())
+    }
+
+    /// The number of weights of the network, `None` if it overflows.
+    pub fn n_params(&self) -> Option<usize> {
+        let dense = |d_in: usize, d_out: usize| d_in.checked_mul(d_out)?.checked_add(d_out);
+        let area = self.fov.checked_mul(self.fov)?;
+        let mut total = 0usize;
+        let enc_out = match &self.encoder {
+            EncoderConfig::Mlp { hidden } => {
+                let mut d_in = self.channels.checked_mul(area)?.checked_add(self.vec_dim())?;
+                for &width in hidden {
+                    total = total.checked_add(dense(d_in, width)?)?;
+                    d_in = width;
+                }
+                d_in
+            }
+            EncoderConfig::Conv { channels, hidden } => {
+                let mut c_in = self.channels;
+                for &c_out in channels {
+                    total = total.checked_add(dense(c_in.checked_mul(9)?, c_out)?)?;
+                    c_in = c_out;
+                }
+                let d_in = c_in.checked_mul(area)?.checked_add(self.vec_dim())?;
+                total = total.checked_add(dense(d_in, *hidden)?)?;
+                *hidden
+            }
+        };
+        let gates = self.lstm_hidden.checked_mul(4)?;
+        let mut d_in = enc_out;
+        for _ in 0..self.lstm_layers {
+            let layer =
+                d_in.checked_add(self.lstm_hidden)?.checked_mul(gates)?.checked_add(gates)?;
+            total = total.checked_add(layer)?;
+            d_in = self.lstm_hidden;
+        }
+        let head_in = self.lstm_hidden.checked_add(self.message_dim())?;
+        total = total.checked_add(dense(head_in, self.head_hidden)?)?;
+        total.checked_add(dense(self.head_hidden, self.n_actions)?)
+    }
+
     /// Build the network with parameters drawn from `rng` on `device`.
+    ///
+    /// # Panics
+    /// If [`QNetConfig::check`] fails (files and settings are checked before).
     pub fn init(&self, rng: &mut ChaCha8Rng, device: &Device) -> QNet {
         assert!(!self.fov.is_multiple_of(2), "field of view must be odd, got {}", self.fov);
         assert!(self.lstm_layers >= 1, "at least one LSTM layer is needed");

@@ -259,6 +259,15 @@ pub(crate) fn read_file(path: &Path) -> Result<File, CheckpointError> {
     if header.version != VERSION {
         return Err(malformed(&format!("version {} (expected {VERSION})", header.version)));
     }
+    header.net_config.check().map_err(|err| malformed(&format!("header: {err}")))?;
+    // Every weight takes 4 bytes of a record: a smaller one cannot hold the network, whose
+    // allocation is then never tried (a damaged header cannot ask for more than the file).
+    let weights = header.net_config.n_params().unwrap_or(usize::MAX);
+    if sections.iter().skip(1).take(2).any(|record| record.len() / 4 < weights) {
+        return Err(malformed(&format!(
+            "header: a network of {weights} weights does not fit its records"
+        )));
+    }
     let mut sections = sections.into_iter().skip(1);
     let online = sections.next().expect("at least two sections");
     let target = sections.next();

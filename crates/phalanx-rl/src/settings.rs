@@ -218,6 +218,7 @@ impl TrainConfig {
     /// Naming the field and its value.
     pub fn check(&self) -> Result<(), SettingsError> {
         let invalid = |msg: String| Err(SettingsError::Invalid(msg));
+        self.net.check().map_err(|err| SettingsError::Invalid(format!("net: {err}")))?;
         let max = self.net.n_agents_max;
         if self.agent_counts.is_empty() {
             return invalid("agent_counts must not be empty".into());

@@ -166,7 +166,8 @@ fn tensors_of_another_network_are_a_record_error() {
     Learner::new(corridor_net(), corridor_learner(), &[2], 1, &device).save(&a).unwrap();
     let small = QNetConfig { lstm_hidden: 16, ..corridor_net() };
     Learner::new(small, corridor_learner(), &[2], 1, &device).save(&b).unwrap();
-    // Header of `a`, tensors of `b`.
+    // Header of `b`, tensors of `a` (tensors too small for a header are refused earlier,
+    // before any network is allocated).
     let sections = |path: &Path| {
         let bytes = std::fs::read(path).unwrap();
         let mut rest = &bytes[8..];
@@ -180,8 +181,8 @@ fn tensors_of_another_network_are_a_record_error() {
     };
     let (sa, sb) = (sections(&a), sections(&b));
     let mut spliced = b"PHXRLCK3".to_vec();
-    spliced.extend_from_slice(&sa[0]);
-    for section in &sb[1..] {
+    spliced.extend_from_slice(&sb[0]);
+    for section in &sa[1..] {
         spliced.extend_from_slice(section);
     }
     let path = dir.path().join("spliced.ckpt");
@@ -189,6 +190,16 @@ fn tensors_of_another_network_are_a_record_error() {
     let err = Learner::load(&path, &device).err().unwrap();
     assert!(matches!(err, CheckpointError::Record { section: "online", .. }), "{err}");
     assert!(err.to_string().contains("shape"), "{err}");
+    // Header of `a`, tensors of `b`: too few bytes for `a`'s weights.
+    let mut spliced = b"PHXRLCK3".to_vec();
+    spliced.extend_from_slice(&sa[0]);
+    for section in &sb[1..] {
+        spliced.extend_from_slice(section);
+    }
+    std::fs::write(&path, spliced).unwrap();
+    let err = Learner::load(&path, &device).err().unwrap();
+    assert!(matches!(err, CheckpointError::Malformed { .. }), "{err}");
+    assert!(err.to_string().contains("does not fit its records"), "{err}");
 }
 
 /// Non-timing metrics as `(name, step, value bits)`.
