@@ -15,7 +15,7 @@ use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_core::Instance;
-use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, Task};
+use phalanx_env::{EnvConfig, EvalMaps, GenConfig, Task};
 use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{EvalSummary, Hierarchy, Rollouts, evaluate, evaluate_hierarchy};
 use serde::Serialize;
@@ -83,18 +83,9 @@ pub(crate) struct EvalCmd {
     /// Number of fresh maps (one episode each).
     #[arg(long, default_value_t = 100)]
     maps: usize,
-    /// Map side.
-    #[arg(long, default_value_t = 32)]
-    size: u32,
-    /// Obstacle density.
-    #[arg(long, default_value_t = 0.15, value_parser = util::fraction)]
-    density: f64,
-    /// Agents per episode.
-    #[arg(long, default_value_t = 3)]
-    agents: usize,
-    /// Base seed of the evaluation stream.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
+    /// The evaluation stream (`--fov` must be the policy's).
+    #[command(flatten)]
+    map: util::MapArgs,
     /// Step limit (default: 3 × side for path finding, 50 for formation).
     #[arg(long, value_name = "N")]
     max_steps: Option<u32>,
@@ -166,16 +157,21 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         load_policy_any(&file, &device).with_context(|| format!("loading the {name} policy"))?;
     let fov = header.net_config.fov as u32;
     anyhow::ensure!(
-        (1..=header.net_config.n_agents_max).contains(&cmd.agents),
+        cmd.map.fov == fov,
+        "--fov {}: the {name} policy sees {fov}×{fov} (its network's field of view)",
+        cmd.map.fov
+    );
+    anyhow::ensure!(
+        (1..=header.net_config.n_agents_max).contains(&cmd.map.agents()),
         "--agents {} must be between 1 and the network's {} agent slots",
-        cmd.agents,
+        cmd.map.agents(),
         header.net_config.n_agents_max
     );
     let rule = cmd.leader.rule(scripted)?;
     let task = cmd.policy.task();
     let max_steps = cmd.max_steps.unwrap_or(match task {
         Task::Formation => FORMATION_STEPS,
-        Task::PathFinding | Task::Meta => 3 * cmd.size,
+        Task::PathFinding | Task::Meta => 3 * cmd.map.size,
     });
     anyhow::ensure!(max_steps > 0, "--max-steps must be positive");
     anyhow::ensure!(cmd.maps > 0, "--maps 0: there is nothing to evaluate");
@@ -192,7 +188,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     );
     let started = Instant::now();
     anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
-    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.seed };
+    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.map.seed };
     let mut progress = |done: usize| bar.set_position(done as u64);
     let episodes = if scripted {
         let low = models::low_level_of(policy, cmd.formation_weights.as_deref())?;
@@ -229,10 +225,10 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     let report = Report {
         policy: name,
         weights: file.display().to_string(),
-        size: cmd.size,
-        density: cmd.density,
-        agents: cmd.agents,
-        seed: cmd.seed,
+        size: cmd.map.size,
+        density: cmd.map.density,
+        agents: cmd.map.agents(),
+        seed: cmd.map.seed,
         max_steps,
         rollouts,
         summary: EvalSummary::of(&episodes),
@@ -249,17 +245,13 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
 
 /// The evaluation instances: `--maps` of them from the evaluation stream.
 fn instances(cmd: &EvalCmd, task: Task, fov: u32) -> anyhow::Result<Vec<Instance>> {
-    let maps = EvalMaps::new(EvalConfig {
-        size: cmd.size,
-        density: cmd.density,
-        n_agents: if task == Task::Formation { 1 } else { cmd.agents },
-        fov,
-        seed: cmd.seed,
-    });
+    let agents = cmd.map.agents();
+    let n_agents = if task == Task::Formation { 1 } else { agents };
+    let maps = EvalMaps::new(GenConfig { n_agents, fov, ..cmd.map.config() });
     if task == Task::Formation {
         return maps
-            .formation_instances(cmd.agents, cmd.maps)
-            .with_context(|| format!("no room for a formation of {} agents", cmd.agents));
+            .formation_instances(agents, cmd.maps)
+            .with_context(|| format!("no room for a formation of {agents} agents"));
     }
     (0..cmd.maps as u64)
         .map(|index| maps.instance(index).context("generating an evaluation instance"))

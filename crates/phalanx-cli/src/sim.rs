@@ -19,25 +19,13 @@ pub(crate) struct SimCmd {
     /// Policy: `random`, `greedy` or `plan:PLAN.yaml` (replay a plan of the instance).
     #[arg(long, default_value = "random")]
     policy: String,
-    /// Side of generated maps.
-    #[arg(long, default_value_t = 32)]
-    size: u32,
-    /// Obstacle density of generated maps.
-    #[arg(long, default_value_t = 0.15, value_parser = crate::util::fraction)]
-    density: f64,
-    /// Agents: of generated instances (default 3), or the first N of the instance file
-    /// (default all).
-    #[arg(long, value_name = "N")]
-    agents: Option<usize>,
+    /// Instances generated with these settings (without an instance file); `--seed` also
+    /// seeds the random policy and `--fov` is the observations' field of view.
+    #[command(flatten)]
+    map: util::MapArgs,
     /// Number of generated episodes.
     #[arg(long, default_value_t = 1)]
     episodes: usize,
-    /// Seed of the random policy and of the evaluation instance stream.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Field of view of the observations built every step (odd).
-    #[arg(long, default_value_t = 9)]
-    fov: u32,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -46,7 +34,7 @@ pub(crate) struct SimCmd {
 /// Runs `phalanx sim`.
 pub(crate) fn run(cmd: SimCmd) -> anyhow::Result<ExitCode> {
     let named = match &cmd.instance {
-        Some(path) => Some(util::read_instance(path, cmd.agents)?),
+        Some(path) => Some(util::read_instance(path, cmd.map.agents)?),
         None => None,
     };
     let policy = match cmd.policy.as_str() {
@@ -66,14 +54,9 @@ pub(crate) fn run(cmd: SimCmd) -> anyhow::Result<ExitCode> {
     };
     let source = match named {
         Some(named) => SimSource::Instance(named.instance),
-        None => SimSource::Generated {
-            size: cmd.size,
-            density: cmd.density,
-            n_agents: cmd.agents.unwrap_or(3),
-            episodes: cmd.episodes,
-        },
+        None => SimSource::Generated { maps: cmd.map.config(), episodes: cmd.episodes },
     };
-    let args = SimArgs { source, policy, fov: cmd.fov, seed: cmd.seed };
+    let args = SimArgs { source, policy, fov: cmd.map.fov, seed: cmd.map.seed };
     let report = phalanx_env::sim::run(&args).context("simulating")?;
     if cmd.json {
         util::print_json(&serde_json::to_value(&report)?)?;

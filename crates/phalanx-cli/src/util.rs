@@ -5,7 +5,47 @@ use std::io::Write as _;
 use std::path::Path;
 
 use anyhow::Context as _;
+use phalanx_gen::GenConfig;
 use phalanx_io::NamedInstance;
+
+/// The settings of generated instances as flags: one group, flattened into `gen`, `eval`
+/// and `sim`, that makes a [`GenConfig`].
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct MapArgs {
+    /// Map side (8 to 4096).
+    #[arg(long, default_value_t = 32)]
+    pub(crate) size: u32,
+    /// Fraction of blocked cells (0 to 0.4).
+    #[arg(long, default_value_t = 0.15, value_parser = fraction)]
+    pub(crate) density: f64,
+    /// Agents per instance (default 3; `sim` on an instance file: its first N, default all).
+    #[arg(long, value_name = "N")]
+    pub(crate) agents: Option<usize>,
+    /// Seed of the generator; of a stream of instances (`eval`, `sim`), its base seed.
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u64,
+    /// Field of view side (odd; walls are at most fov / 2 long).
+    #[arg(long, default_value_t = 9)]
+    pub(crate) fov: u32,
+}
+
+impl MapArgs {
+    /// Agents per generated instance.
+    pub(crate) fn agents(&self) -> usize {
+        self.agents.unwrap_or(3)
+    }
+
+    /// The generator settings.
+    pub(crate) fn config(&self) -> GenConfig {
+        GenConfig {
+            size: self.size,
+            density: self.density,
+            n_agents: self.agents(),
+            seed: self.seed,
+            fov: self.fov,
+        }
+    }
+}
 
 /// The plan is invalid (`validate`).
 pub(crate) const EXIT_INVALID: u8 = 1;

@@ -45,5 +45,6 @@ pub use env::{Env, MAX_AGENTS, Step, StepInfo};
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use hier::{Choice, HierEnv};
 pub use marl::{MarlEnv, ObsBuffers, ObsShape, StepOut, step_lockstep};
-pub use pool::{EvalConfig, EvalMaps, PoolConfig, TrainPool, eval_seed, train_seed};
+pub use phalanx_gen::GenConfig;
+pub use pool::{EvalMaps, PoolConfig, TrainPool, eval_seed, train_seed};
 pub use task::{PoolEnv, Shaping, TaskEnv};

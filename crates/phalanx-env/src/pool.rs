@@ -62,6 +62,22 @@ impl Default for PoolConfig {
     }
 }
 
+impl PoolConfig {
+    /// The generator settings of map `index`: one agent (the map only: every team up to
+    /// the start region's cells fits it) and the seed [`train_seed`]`(seed, index)`. The
+    /// pool keeps its own fields (no team size) because they are the `pool` object of the
+    /// training settings files.
+    pub fn map(&self, index: u64) -> GenConfig {
+        GenConfig {
+            size: self.size,
+            density: self.density,
+            n_agents: 1,
+            seed: train_seed(self.seed, index),
+            fov: self.fov,
+        }
+    }
+}
+
 /// The fixed pool of training maps; each episode draws one map and a fresh formation.
 #[derive(Debug, Clone)]
 pub struct TrainPool {
@@ -73,16 +89,7 @@ impl TrainPool {
     /// Generates the pool: map `i` is the generator's map for [`train_seed`]`(seed, i)`.
     pub fn new(config: &PoolConfig) -> Result<TrainPool, EnvError> {
         let maps = (0..config.n_maps as u64)
-            .map(|i| {
-                let gen_config = GenConfig {
-                    size: config.size,
-                    density: config.density,
-                    n_agents: 1,
-                    seed: train_seed(config.seed, i),
-                    fov: config.fov,
-                };
-                phalanx_gen::generate(&gen_config).map(|inst| inst.into_parts().0)
-            })
+            .map(|i| phalanx_gen::generate(&config.map(i)).map(|inst| inst.into_parts().0))
             .collect::<Result<Vec<Grid>, _>>()?;
         Ok(TrainPool { config: config.clone(), maps })
     }
@@ -138,31 +145,16 @@ impl TrainPool {
     }
 }
 
-/// Settings of the evaluation instances: a problem's inputs, so no defaults.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct EvalConfig {
-    /// Map side.
-    pub size: u32,
-    /// Obstacle density.
-    pub density: f64,
-    /// Agents per instance.
-    pub n_agents: usize,
-    /// Field of view.
-    pub fov: u32,
-    /// Base seed of the evaluation stream.
-    pub seed: u64,
-}
-
 /// Freshly generated evaluation instances, never from the training stream.
 #[derive(Debug, Clone)]
 pub struct EvalMaps {
-    config: EvalConfig,
+    config: GenConfig,
 }
 
 impl EvalMaps {
-    /// The evaluation stream for `config`.
-    pub fn new(config: EvalConfig) -> EvalMaps {
+    /// The evaluation stream of instances generated with `config`: its `seed` is the
+    /// stream's base seed, instance `i` is generated with [`EvalMaps::seed`]`(i)`.
+    pub fn new(config: GenConfig) -> EvalMaps {
         EvalMaps { config }
     }
 
@@ -205,14 +197,6 @@ impl EvalMaps {
 
     /// Generates instance `index`.
     pub fn instance(&self, index: u64) -> Result<Instance, EnvError> {
-        let c = &self.config;
-        let gen_config = GenConfig {
-            size: c.size,
-            density: c.density,
-            n_agents: c.n_agents,
-            seed: self.seed(index),
-            fov: c.fov,
-        };
-        Ok(phalanx_gen::generate(&gen_config)?)
+        Ok(phalanx_gen::generate(&GenConfig { seed: self.seed(index), ..self.config.clone() })?)
     }
 }

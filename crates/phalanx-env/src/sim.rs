@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::{Env, EnvConfig, EnvError, EvalConfig, EvalMaps, ObsBuffers};
+use crate::{Env, EnvConfig, EnvError, EvalMaps, ObsBuffers};
 
 /// Which policy drives the agents.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,12 +31,8 @@ pub enum SimSource {
     Instance(Instance),
     /// `episodes` evaluation instances (see [`EvalMaps`]) generated with these settings.
     Generated {
-        /// Map side.
-        size: u32,
-        /// Obstacle density.
-        density: f64,
-        /// Agents per instance.
-        n_agents: usize,
+        /// The settings of the instances; `seed` is the stream's base seed.
+        maps: phalanx_gen::GenConfig,
         /// Number of episodes.
         episodes: usize,
     },
@@ -153,18 +149,12 @@ pub fn run(args: &SimArgs) -> Result<SimReport, SimError> {
     };
     match &args.source {
         SimSource::Instance(inst) => one(inst, None, &mut rng)?,
-        &SimSource::Generated { size, density, n_agents, episodes } => {
+        SimSource::Generated { maps, episodes } => {
             if matches!(args.policy, SimPolicy::Plan(_)) {
                 return Err(SimError::PlanNeedsInstance);
             }
-            let maps = EvalMaps::new(EvalConfig {
-                size,
-                density,
-                n_agents,
-                fov: args.fov,
-                seed: args.seed,
-            });
-            for e in 0..episodes as u64 {
+            let maps = EvalMaps::new(maps.clone());
+            for e in 0..*episodes as u64 {
                 one(&maps.instance(e)?, Some(maps.seed(e)), &mut rng)?;
             }
         }

@@ -8,7 +8,7 @@
 use std::sync::Arc;
 
 use phalanx_core::{Grid, Instance};
-use phalanx_env::{EvalConfig, EvalMaps, eval_seed};
+use phalanx_env::{EvalMaps, eval_seed};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -189,7 +189,7 @@ impl Case {
             }
             Source::Fixed(instance) => return Ok(((**instance).clone(), 0)),
         }
-        let maps = EvalMaps::new(EvalConfig {
+        let maps = EvalMaps::new(phalanx_gen::GenConfig {
             size: self.side,
             density: self.density,
             n_agents: self.agents,

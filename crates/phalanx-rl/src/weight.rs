@@ -13,7 +13,7 @@
 //! The spread is a bootstrap over episodes (pairs of the two policies' episodes on one start
 //! state resampled together).
 
-use phalanx_env::{EnvConfig, EnvError, EvalConfig, EvalMaps, Task};
+use phalanx_env::{EnvConfig, EnvError, EvalMaps, GenConfig, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -102,7 +102,7 @@ pub fn estimate_weight(
     let mut res = Vec::with_capacity(agent_counts.len());
     let mut done = 0;
     for &n_agents in agent_counts {
-        let maps = EvalMaps::new(EvalConfig {
+        let maps = EvalMaps::new(GenConfig {
             size: config.size,
             density: config.density,
             n_agents: 1,

@@ -2,7 +2,7 @@
 
 use phalanx_core::formation_loss;
 use phalanx_env::{
-    Env, EnvConfig, EvalConfig, EvalMaps, PoolConfig, Task, TrainPool, eval_seed,
+    Env, EnvConfig, EvalMaps, GenConfig, PoolConfig, Task, TrainPool, eval_seed,
     formation_instance, train_seed,
 };
 use rand::SeedableRng;
@@ -16,7 +16,7 @@ fn training_and_evaluation_seeds_never_meet() {
             assert!(eval_seed(base, i) >> 63 == 1);
         }
     }
-    let maps = EvalMaps::new(EvalConfig { size: 32, density: 0.15, n_agents: 3, fov: 9, seed: 0 });
+    let maps = EvalMaps::new(GenConfig { size: 32, density: 0.15, n_agents: 3, fov: 9, seed: 0 });
     assert!((0..100).all(|i| maps.seed(i) != train_seed(0, i)));
 }
 

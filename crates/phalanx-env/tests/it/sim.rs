@@ -11,7 +11,10 @@ use crate::{c, instance};
 #[test]
 fn sim_report_has_the_validator_metrics_and_the_speed() {
     let args = SimArgs {
-        source: SimSource::Generated { size: 20, density: 0.05, n_agents: 3, episodes: 5 },
+        source: SimSource::Generated {
+            maps: GenConfig { size: 20, density: 0.05, n_agents: 3, seed: 1, fov: 9 },
+            episodes: 5,
+        },
         policy: SimPolicy::Greedy,
         fov: 9,
         seed: 1,

@@ -3,7 +3,7 @@
 
 use phalanx_core::Instance;
 use phalanx_env::PoolConfig;
-use phalanx_env::{EnvConfig, EvalConfig, EvalMaps, MarlEnv, ObsBuffers, PoolEnv, Task};
+use phalanx_env::{EnvConfig, EvalMaps, MarlEnv, ObsBuffers, PoolEnv, Task};
 use phalanx_rl::{EvalSummary, QNetConfig, Rollouts, evaluate};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -117,7 +117,13 @@ fn reset_envs_clears_only_the_restarted_episodes() {
 }
 
 fn instances(n: usize) -> Vec<Instance> {
-    let maps = EvalMaps::new(EvalConfig { size: 16, density: 0.1, n_agents: 3, fov: 9, seed: 4 });
+    let maps = EvalMaps::new(phalanx_gen::GenConfig {
+        size: 16,
+        density: 0.1,
+        n_agents: 3,
+        fov: 9,
+        seed: 4,
+    });
     (0..n as u64).map(|idx| maps.instance(idx).unwrap()).collect()
 }
 
