@@ -7,6 +7,7 @@ use std::process::Output;
 use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
+mod kill;
 mod render;
 mod threads;
 

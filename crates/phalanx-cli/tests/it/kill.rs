@@ -1,0 +1,107 @@
+//! Kill anywhere: a short `phalanx train` run killed with SIGKILL at random moments (seeded
+//! delays; some fall inside checkpoint writes, which are atomic) and resumed each time ends
+//! with exactly the metrics and the policy file of a run never stopped. After every kill the
+//! checkpoint, when there is one, reads back, and it is at most one checkpoint interval
+//! behind the progress the metrics show; metrics written past it, and a line torn by the
+//! kill, are cut by the resume.
+
+use std::path::Path;
+use std::time::Duration;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::check;
+
+/// Checkpoints far enough apart that more metrics than the writer's buffer holds come
+/// between two: a killed run has flushed lines past its checkpoint, which a resume must cut.
+const CONFIG: &str = r#"{"agent_counts": [2], "n_envs": 2, "pool": {"n_maps": 4},
+    "checkpoint_every": 32, "env": {"step_limit": 20},
+    "learner": {"batch_size": 4, "learning_starts": 2}}"#;
+const STEPS: &str = "1500";
+/// Environment steps between two checkpoints: `checkpoint_every × train_every` (8).
+const INTERVAL: u64 = 32 * 8;
+
+fn train(dir: &Path, run: &str, resume: bool) -> std::process::Command {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"));
+    cmd.args(["train", "pathfinding", "--config", "cfg.json", "--steps", STEPS, "--out", run])
+        .current_dir(dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null());
+    if resume {
+        cmd.arg("--resume");
+    }
+    cmd
+}
+
+/// The metric lines of `run`, without the timings (`perf/`).
+fn metrics(dir: &Path, run: &str) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join(run).join("metrics.jsonl")).unwrap_or_default();
+    text.lines().filter(|l| !l.contains("\"perf/")).map(str::to_owned).collect()
+}
+
+/// The last step the complete metric lines of `run` reach.
+fn progress(dir: &Path, run: &str) -> u64 {
+    let text = std::fs::read_to_string(dir.join(run).join("metrics.jsonl")).unwrap_or_default();
+    text.split_inclusive('\n')
+        .filter(|l| l.ends_with('\n'))
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok()?["step"].as_u64())
+        .max()
+        .unwrap_or(0)
+}
+
+#[test]
+fn training_killed_anywhere_resumes_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("cfg.json"), CONFIG).unwrap();
+    let whole = train(d, "whole", false).output().unwrap();
+    assert!(whole.status.success(), "the uninterrupted run failed");
+
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let checkpoint = d.join("parts").join("checkpoint");
+    let mut kills = 0;
+    for _ in 0..5 {
+        let resume = checkpoint.exists();
+        let mut child = train(d, "parts", resume).spawn().unwrap();
+        std::thread::sleep(Duration::from_millis(rng.random_range(100..1200)));
+        if child.try_wait().unwrap().is_some() {
+            break; // finished before the kill
+        }
+        child.kill().unwrap(); // SIGKILL
+        child.wait().unwrap();
+        kills += 1;
+        if checkpoint.exists() {
+            let header = phalanx_rl::policy_file::read_header(&checkpoint)
+                .unwrap_or_else(|err| panic!("after kill {kills}: {err}"));
+            let (saved, shown) = (header.counters.env_steps, progress(d, "parts"));
+            assert!(
+                shown <= saved + INTERVAL,
+                "kill {kills}: the checkpoint at {saved} steps is more than one interval behind {shown}"
+            );
+            // A resume needs what the checkpoint holds: the learner loads.
+            let device = burn::tensor::Device::flex().autodiff();
+            phalanx_rl::Learner::load(&checkpoint, &device).unwrap();
+        }
+    }
+    assert!(kills >= 3, "only {kills} kills landed before the run ended");
+    // Whether or not a kill left lines past the checkpoint (flushed when the writer's buffer
+    // filled) depends on timing; make sure of one, and of a line torn by the kill.
+    if checkpoint.exists() {
+        let saved = phalanx_rl::policy_file::read_header(&checkpoint).unwrap().counters.env_steps;
+        let extra = format!(
+            "{{\"name\":\"charts/episodic_return\",\"step\":{},\"value\":1.0}}\n{{\"name\":\"cha",
+            saved + 1
+        );
+        let path = d.join("parts").join("metrics.jsonl");
+        let mut file = std::fs::OpenOptions::new().append(true).open(path).unwrap();
+        std::io::Write::write_all(&mut file, extra.as_bytes()).unwrap();
+    }
+    let last = train(d, "parts", checkpoint.exists()).output().unwrap();
+    assert!(last.status.success(), "the last resume failed");
+
+    assert_eq!(metrics(d, "parts"), metrics(d, "whole"), "the metrics differ");
+    let policy = |run: &str| std::fs::read(d.join(run).join("policy.bin")).unwrap();
+    assert!(policy("parts") == policy("whole"), "the policy files differ");
+    check(&last, 0);
+}
