@@ -55,8 +55,11 @@ fn training_killed_anywhere_resumes_exactly() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("cfg.json"), CONFIG).unwrap();
+    let started = std::time::Instant::now();
     let whole = train(d, "whole", false).output().unwrap();
     assert!(whole.status.success(), "the uninterrupted run failed");
+    // Kills land between a twentieth and a quarter of a whole run's time after each start.
+    let span = started.elapsed().as_millis() as u64;
 
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let checkpoint = d.join("parts").join("checkpoint");
@@ -64,7 +67,7 @@ fn training_killed_anywhere_resumes_exactly() {
     for _ in 0..5 {
         let resume = checkpoint.exists();
         let mut child = train(d, "parts", resume).spawn().unwrap();
-        std::thread::sleep(Duration::from_millis(rng.random_range(100..1200)));
+        std::thread::sleep(Duration::from_millis(rng.random_range(span / 20..span / 4)));
         if child.try_wait().unwrap().is_some() {
             break; // finished before the kill
         }
@@ -104,4 +107,54 @@ fn training_killed_anywhere_resumes_exactly() {
     let policy = |run: &str| std::fs::read(d.join(run).join("policy.bin")).unwrap();
     assert!(policy("parts") == policy("whole"), "the policy files differ");
     check(&last, 0);
+}
+
+fn bench(dir: &Path, out: &str, resume: bool) -> std::process::Command {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"));
+    let args = ["bench", "scaling", "--sides", "128,256", "--agents", "3", "--maps", "8"];
+    cmd.args(args)
+        .args(["--methods", "pathfinding,ecbs", "--rollouts", "2", "--out", out])
+        .current_dir(dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null());
+    if resume {
+        cmd.arg("--resume");
+    }
+    cmd
+}
+
+/// The run records of `out` without their timings, sorted.
+fn records(dir: &Path, out: &str) -> Vec<serde_json::Value> {
+    let text = std::fs::read_to_string(dir.join(out).join("runs.jsonl")).unwrap();
+    let mut res: Vec<serde_json::Value> =
+        text.lines().map(|l| super::threads::untimed(serde_json::from_str(l).unwrap())).collect();
+    res.sort_by_key(|r| r.to_string());
+    res
+}
+
+#[test]
+fn a_benchmark_killed_anywhere_resumes_to_the_same_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let started = std::time::Instant::now();
+    assert!(bench(d, "whole", false).status().unwrap().success());
+    let span = started.elapsed().as_millis() as u64;
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut kills = 0;
+    for _ in 0..4 {
+        let resume = d.join("parts").join("bench.json").exists();
+        let mut child = bench(d, "parts", resume).spawn().unwrap();
+        std::thread::sleep(Duration::from_millis(rng.random_range(span / 10..span / 3)));
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        child.kill().unwrap();
+        child.wait().unwrap();
+        kills += 1;
+    }
+    assert!(kills >= 2, "only {kills} kills landed before the benchmark ended");
+    assert!(bench(d, "parts", true).status().unwrap().success(), "the last resume failed");
+    let (parts, whole) = (records(d, "parts"), records(d, "whole"));
+    assert_eq!(parts.len(), whole.len(), "a run is missing or made twice");
+    assert_eq!(parts, whole);
 }

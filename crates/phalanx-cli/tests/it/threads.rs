@@ -17,7 +17,7 @@ fn on_threads(dir: &Path, threads: &str, args: &[&str]) -> Output {
 }
 
 /// A JSON report without its timings (wall seconds and rates).
-fn untimed(mut value: serde_json::Value) -> serde_json::Value {
+pub(super) fn untimed(mut value: serde_json::Value) -> serde_json::Value {
     const TIMINGS: [&str; 4] = ["seconds", "runtime_s", "decisions_per_s", "agent_steps_per_s"];
     match &mut value {
         serde_json::Value::Object(map) => {
