@@ -155,6 +155,77 @@ fn from_yaml<T: DeserializeOwned>(text: &str) -> Result<T, ParseError> {
     serde_yaml::from_value(strip_tags(value)).map_err(|_| yaml_error(&direct, 1))
 }
 
+/// The instance document of `text`, its obstacle list read by [`split_obstacles`] where it
+/// can be (the same result as serde_yaml's, with a fraction of the memory).
+fn instance_dto(text: &str) -> Result<InstanceDto, ParseError> {
+    if let Some((pairs, rest)) = split_obstacles(text)
+        && let Ok(mut dto) = from_yaml::<InstanceDto>(&rest)
+        && dto.map.obstacles.as_ref().is_some_and(Vec::is_empty)
+    {
+        dto.map.obstacles = Some(pairs);
+        return Ok(dto);
+    }
+    from_yaml(text)
+}
+
+/// The obstacles of an instance written one flow pair per line (`- [x, y]`, as phalanx and
+/// libMultiRobotPlanning's scripts write them), and the text with that list emptied
+/// (`obstacles: []`, its lines left blank so that line numbers hold). serde_yaml holds every
+/// event of a document in memory, about 30 bytes per byte of text: a 4096² map's list would
+/// take more than a gigabyte, read this way it takes its pairs. `None` when the list is
+/// written any other way (comments, anchors, pairs over several lines, block pairs, one
+/// `obstacles:` key among several): the whole text then goes to serde_yaml, as it would
+/// anyway, and the result is the same.
+fn split_obstacles(text: &str) -> Option<(Vec<[i64; 2]>, String)> {
+    let lines: Vec<&str> = text.split_inclusive('\n').collect();
+    let is_key = |l: &str| l.trim_end().trim_start() == "obstacles:";
+    let mut keys = lines.iter().enumerate().filter(|(_, l)| is_key(l));
+    let (key, _) = keys.next()?;
+    if keys.next().is_some() {
+        return None;
+    }
+    let pair = |line: &str| -> Option<(usize, [i64; 2])> {
+        let content = line.trim_end_matches(['\n', '\r']);
+        let indent = content.len() - content.trim_start().len();
+        let inner =
+            content.trim().strip_prefix('-')?.trim().strip_prefix('[')?.strip_suffix(']')?;
+        let (x, y) = inner.split_once(',')?;
+        Some((indent, [x.trim().parse().ok()?, y.trim().parse().ok()?]))
+    };
+    let (first, _) = pair(lines.get(key + 1)?)?;
+    let mut pairs = Vec::new();
+    let mut end = key + 1;
+    while let Some((indent, p)) = lines.get(end).and_then(|l| pair(l)) {
+        if indent != first {
+            return None;
+        }
+        pairs.push(p);
+        end += 1;
+    }
+    // What follows must leave the list: less indented, or a key at the dash's indent.
+    if let Some(next) = lines[end..].iter().map(|l| l.trim_end()).find(|l| !l.trim().is_empty()) {
+        let indent = next.len() - next.trim_start().len();
+        let item = next.trim_start().starts_with('-');
+        if next.trim_start().starts_with('#') || indent > first || (indent == first && item) {
+            return None;
+        }
+    }
+    let mut rest = String::with_capacity(text.len() - (end - key) * 8);
+    for (i, line) in lines.iter().enumerate() {
+        if i == key {
+            let newline = &line[line.trim_end().len()..];
+            rest.push_str(line.trim_end());
+            rest.push_str(" []");
+            rest.push_str(newline);
+        } else if (key + 1..end).contains(&i) {
+            rest.push('\n');
+        } else {
+            rest.push_str(line);
+        }
+    }
+    Some((pairs, rest))
+}
+
 fn coordinate(v: i64, line: usize) -> Result<i32, ParseError> {
     i32::try_from(v).map_err(|_| ParseError::new(line, ParseErrorKind::Coordinate(v)))
 }
@@ -183,7 +254,7 @@ impl YamlInstance {
     /// Parses a libMRP instance. Checks the map size and that obstacles are inside the map;
     /// the agents are checked by [`YamlInstance::to_instance`].
     pub fn parse(text: &str) -> Result<YamlInstance, ParseError> {
-        let dto: InstanceDto = from_yaml(text)?;
+        let dto = instance_dto(text)?;
         let map_line = key_lines(text, "dimensions").first().copied().unwrap_or(1);
         let [width, height] = dto.map.dimensions;
         let max = i64::from(Grid::MAX_SIDE);
@@ -406,3 +477,6 @@ impl fmt::Display for YamlPlan {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests;
