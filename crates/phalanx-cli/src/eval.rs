@@ -141,6 +141,17 @@ struct Report<'a> {
     /// Agent decisions per second (agents × steps of every rollout / seconds, batched
     /// inference).
     decisions_per_s: f64,
+    /// Heap memory over the run (bytes held by the program's allocations).
+    memory: Memory,
+}
+
+/// Heap memory of an evaluation: after its first batch of episodes and at its end (the
+/// difference is the per-episode records the report keeps, plans included), and the peak.
+#[derive(Debug, Serialize)]
+struct Memory {
+    after_first_batch: usize,
+    at_end: usize,
+    peak: usize,
 }
 
 /// Runs `phalanx eval`.
@@ -189,7 +200,11 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
     anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
     let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.map.seed };
-    let mut progress = |done: usize| bar.set_position(done as u64);
+    let mut after_first_batch = None;
+    let mut progress = |done: usize| {
+        after_first_batch.get_or_insert_with(crate::memory::held);
+        bar.set_position(done as u64);
+    };
     let episodes = if scripted {
         let low = models::low_level_of(policy, cmd.formation_weights.as_deref())?;
         let mut hierarchy = Hierarchy::scripted(rule, low);
@@ -234,6 +249,11 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         summary: EvalSummary::of(&episodes),
         seconds,
         decisions_per_s: decisions as f64 / seconds.max(1e-9),
+        memory: Memory {
+            after_first_batch: after_first_batch.unwrap_or_default(),
+            at_end: crate::memory::held(),
+            peak: crate::memory::peak(),
+        },
     };
     if cmd.json {
         util::print_json(&serde_json::to_value(&report)?)?;
@@ -259,6 +279,11 @@ fn instances(cmd: &EvalCmd, task: Task, fov: u32) -> anyhow::Result<Vec<Instance
 }
 
 /// The report as a table.
+/// Bytes in MiB.
+fn mib(bytes: usize) -> f64 {
+    bytes as f64 / f64::from(1 << 20)
+}
+
 fn text(r: &Report<'_>) -> String {
     let s = &r.summary;
     util::table(&[
@@ -284,5 +309,14 @@ fn text(r: &Report<'_>) -> String {
         ("final L_f", format!("{:.4}", s.final_formation_loss)),
         ("rollouts", format!("{} (random action prob. {})", r.rollouts.count, r.rollouts.epsilon)),
         ("decisions/s", format!("{:.0} ({:.2} s)", r.decisions_per_s, r.seconds)),
+        (
+            "memory",
+            format!(
+                "{:.1} MiB after the first batch, {:.1} MiB at the end, peak {:.1} MiB",
+                mib(r.memory.after_first_batch),
+                mib(r.memory.at_end),
+                mib(r.memory.peak)
+            ),
+        ),
     ])
 }

@@ -5,7 +5,8 @@
 //! `run(Args) -> anyhow::Result<ExitCode>`; this file only holds the [`Command`] enum and
 //! the dispatch. To add one: write `src/<name>.rs`, add a variant and a match arm.
 //! Exit codes: 0 success, 1 an invalid plan (`validate`) or no plan, 2 bad input (unreadable
-//! or malformed files, bad flags), 3 an output that cannot be written; see [`util`].
+//! or malformed files, bad flags), 3 an output that cannot be written, 4 no plan from an
+//! incomplete planner, 5 the memory bound ([`memory`]); see [`util`].
 
 mod bench;
 mod demo;
@@ -13,6 +14,7 @@ mod eval;
 #[path = "gen.rs"]
 mod generate;
 mod info;
+mod memory;
 mod meta;
 mod plot;
 mod render;
@@ -32,9 +34,16 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "phalanx", version, about)]
 struct Cli {
+    /// The most memory the run may use, e.g. 512M, 16G, or none (default: 90 % of the memory
+    /// available at start; also PHALANX_MEMORY_LIMIT). Past it the run ends with exit code 5.
+    #[arg(long, global = true, value_name = "SIZE")]
+    memory_limit: Option<String>,
     #[command(subcommand)]
     command: Command,
 }
+
+#[global_allocator]
+static ALLOCATOR: memory::Bounded = memory::Bounded;
 
 /// The subcommands.
 #[derive(Debug, Subcommand)]
@@ -78,6 +87,10 @@ fn main() -> ExitCode {
             };
         }
     };
+    if let Err(err) = memory::set_limit(cli.memory_limit.as_deref()) {
+        let _ = writeln!(std::io::stderr(), "error: {err}");
+        return ExitCode::from(util::EXIT_BAD_INPUT);
+    }
     let res = match cli.command {
         Command::Gen(args) => generate::run(args),
         Command::Info(args) => info::run(args),

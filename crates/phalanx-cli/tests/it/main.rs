@@ -523,3 +523,31 @@ fn prioritised_a_star_failing_its_order_is_incomplete_not_unsolvable() {
     assert!(stdout.contains("outcome: incomplete"), "{stdout}");
     check(&phalanx(d, &["solve", "pocket.yaml", "--planner", "cbs"]), 0);
 }
+
+#[test]
+fn a_run_past_its_memory_bound_ends_with_a_message_and_keeps_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("big.yaml"), "kept\n").unwrap();
+    let args = ["--memory-limit", "16M", "gen", "--size", "4096", "-o", "big.yaml"];
+    let (_, stderr) = check(&phalanx(d, &args), 5);
+    assert!(stderr.contains("bound of 16 MiB") && stderr.contains("--memory-limit"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(d.join("big.yaml")).unwrap(), "kept\n");
+    let leftovers: Vec<_> = std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(leftovers, ["big.yaml"], "no temporary file is left");
+    // A bound it fits in, given after the subcommand or in the environment.
+    check(&phalanx(d, &["gen", "--size", "64", "-o", "small.yaml", "--memory-limit", "1G"]), 0);
+    let env_bound = std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"))
+        .args(["gen", "--size", "4096", "-o", "big.yaml"])
+        .env("PHALANX_MEMORY_LIMIT", "16M")
+        .current_dir(d)
+        .output()
+        .unwrap();
+    check(&env_bound, 5);
+    // Sizes that are not sizes.
+    let (_, stderr) =
+        check(&phalanx(d, &["--memory-limit", "12 parsecs", "info", "small.yaml"]), 2);
+    assert!(stderr.contains("--memory-limit \"12 parsecs\""), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["--memory-limit=0", "info", "small.yaml"]), 2);
+    assert!(stderr.contains("must be positive"), "{stderr}");
+}

@@ -16,9 +16,11 @@ fn on_threads(dir: &Path, threads: &str, args: &[&str]) -> Output {
         .expect("running phalanx")
 }
 
-/// A JSON report without its timings (wall seconds and rates).
+/// A JSON report without its timings (wall seconds and rates) and its memory figures (the
+/// thread pool's own allocations depend on the thread count).
 pub(super) fn untimed(mut value: serde_json::Value) -> serde_json::Value {
-    const TIMINGS: [&str; 4] = ["seconds", "runtime_s", "decisions_per_s", "agent_steps_per_s"];
+    const TIMINGS: [&str; 5] =
+        ["seconds", "runtime_s", "decisions_per_s", "agent_steps_per_s", "memory"];
     match &mut value {
         serde_json::Value::Object(map) => {
             for key in TIMINGS {
