@@ -8,6 +8,10 @@
 //! - `cargo xtask test [CARGO TEST FLAGS]`: the README's test command: every Rust test
 //!   (`cargo test --workspace --all-targets`), then the Python package's tests (a virtualenv
 //!   in `target/py-venv` with the pinned test requirements, `maturin develop`, pytest).
+//! - `cargo xtask fuzz [--seconds N] [TARGET...]`: each fuzz target of `fuzz/` under
+//!   libFuzzer for `N` seconds (default 600), one after the other; `cargo xtask fuzz
+//!   --replay`: build the targets and run each over its corpus and crash inputs once (CI).
+//!   Both need cargo-fuzz (`cargo install cargo-fuzz --locked`); no nightly toolchain.
 
 #![allow(clippy::print_stdout, clippy::print_stderr, reason = "a command-line tool")]
 
@@ -29,8 +33,9 @@ fn main() -> ExitCode {
         Some("deps") => deps().map(|()| true),
         Some("demo") => demo().map(|()| true),
         Some("test") => test(&args[1..]),
+        Some("fuzz") => fuzz(&args[1..]).map(|()| true),
         _ => {
-            eprintln!("usage: cargo xtask tidy|deps|demo|test");
+            eprintln!("usage: cargo xtask tidy|deps|demo|test|fuzz");
             return ExitCode::from(2);
         }
     };
@@ -171,4 +176,70 @@ fn test(cargo_flags: &[String]) -> anyhow::Result<bool> {
     let pytest_env = [("PHALANX_BIN", phalanx.as_os_str()), venv_env[0], venv_env[1]];
     run(&bin.join("python"), &["-m", "pytest", "-q", "crates/phalanx-py/tests"], &pytest_env)?;
     Ok(true)
+}
+
+/// The fuzz targets: the files of `fuzz/fuzz_targets`, by name.
+fn fuzz_targets(fuzz_dir: &std::path::Path) -> anyhow::Result<Vec<String>> {
+    let dir = fuzz_dir.join("fuzz_targets");
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(&dir).with_context(|| format!("reading {}", dir.display()))? {
+        let path = entry?.path();
+        if path.extension().is_some_and(|ext| ext == "rs") {
+            names.extend(path.file_stem().map(|stem| stem.to_string_lossy().into_owned()));
+        }
+    }
+    names.sort();
+    Ok(names)
+}
+
+/// `cargo xtask fuzz` (see the module docs). The targets are built optimised, without a
+/// sanitizer (safe Rust: a panic is the failure), on the stable toolchain.
+fn fuzz(args: &[String]) -> anyhow::Result<()> {
+    let root = xtask::workspace_root();
+    let cargo = std::path::PathBuf::from(env!("CARGO"));
+    let fuzz_dir = root.join("fuzz");
+    let installed = Command::new(&cargo).args(["fuzz", "--version"]).output();
+    if !installed.is_ok_and(|out| out.status.success()) {
+        bail!("cargo-fuzz is missing: cargo install cargo-fuzz --locked");
+    }
+    let all = fuzz_targets(&fuzz_dir)?;
+    let (mut seconds, mut replay, mut targets) = (600u64, false, Vec::new());
+    let mut rest = args.iter();
+    while let Some(arg) = rest.next() {
+        match arg.as_str() {
+            "--replay" => replay = true,
+            "--seconds" => {
+                let value = rest.next().context("--seconds needs a value")?;
+                seconds = value.parse().with_context(|| format!("--seconds {value}"))?;
+            }
+            name if all.iter().any(|it| it == name) => targets.push(name.to_owned()),
+            other => bail!("unknown fuzz target or flag {other:?} (targets: {all:?})"),
+        }
+    }
+    if targets.is_empty() {
+        targets = all;
+    }
+    let build = ["fuzz", "build", "-O", "-s", "none", "--fuzz-dir"];
+    let fuzz_path = fuzz_dir.to_string_lossy();
+    run(&cargo, &[&build[..], &[&fuzz_path]].concat(), &[])?;
+    for target in &targets {
+        let corpus = fuzz_dir.join("corpus").join(target);
+        let regressions = fuzz_dir.join("regressions").join(target);
+        let mut dirs = vec![corpus.to_string_lossy().into_owned()];
+        if replay && regressions.is_dir() {
+            dirs.push(regressions.to_string_lossy().into_owned());
+        }
+        let time = format!("-max_total_time={seconds}");
+        let libfuzzer: Vec<&str> = if replay {
+            vec!["-runs=0"]
+        } else {
+            vec![&time, "-rss_limit_mb=4096", "-timeout=10", "-print_final_stats=1"]
+        };
+        let mut args = vec!["fuzz", "run", "-O", "-s", "none", "--fuzz-dir", &fuzz_path, target];
+        args.extend(dirs.iter().map(String::as_str));
+        args.push("--");
+        args.extend(libfuzzer);
+        run(&cargo, &args, &[])?;
+    }
+    Ok(())
 }

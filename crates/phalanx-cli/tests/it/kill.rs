@@ -22,9 +22,10 @@ const STEPS: &str = "1500";
 /// Environment steps between two checkpoints: `checkpoint_every × train_every` (8).
 const INTERVAL: u64 = 32 * 8;
 
-fn train(dir: &Path, run: &str, resume: bool) -> std::process::Command {
+/// `phalanx ARGS` in `dir`, quiet, with `--resume` when `resume`.
+fn phalanx(dir: &Path, args: &[&str], resume: bool) -> std::process::Command {
     let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"));
-    cmd.args(["train", "pathfinding", "--config", "cfg.json", "--steps", STEPS, "--out", run])
+    cmd.args(args)
         .current_dir(dir)
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null());
@@ -32,6 +33,11 @@ fn train(dir: &Path, run: &str, resume: bool) -> std::process::Command {
         cmd.arg("--resume");
     }
     cmd
+}
+
+fn train(dir: &Path, run: &str, resume: bool) -> std::process::Command {
+    let args = ["train", "pathfinding", "--config", "cfg.json", "--steps", STEPS, "--out", run];
+    phalanx(dir, &args, resume)
 }
 
 /// The metric lines of `run`, without the timings (`perf/`).
@@ -110,17 +116,9 @@ fn training_killed_anywhere_resumes_exactly() {
 }
 
 fn bench(dir: &Path, out: &str, resume: bool) -> std::process::Command {
-    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_phalanx"));
-    let args = ["bench", "scaling", "--sides", "128,256", "--agents", "3", "--maps", "8"];
-    cmd.args(args)
-        .args(["--methods", "pathfinding,ecbs", "--rollouts", "2", "--out", out])
-        .current_dir(dir)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null());
-    if resume {
-        cmd.arg("--resume");
-    }
-    cmd
+    let scaling = ["bench", "scaling", "--sides", "128,256", "--agents", "3", "--maps", "8"];
+    let methods = ["--methods", "pathfinding,ecbs", "--rollouts", "2", "--out", out];
+    phalanx(dir, &[&scaling[..], &methods[..]].concat(), resume)
 }
 
 /// The run records of `out` without their timings, sorted.
