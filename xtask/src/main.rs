@@ -50,8 +50,15 @@ fn main() -> ExitCode {
 }
 
 /// Crates that must never depend on burn (ARCHITECTURE.md, invariant 1).
-const BURN_FREE: &[&str] =
-    &["phalanx-core", "phalanx-io", "phalanx-gen", "phalanx-env", "phalanx-plan", "phalanx-render"];
+const BURN_FREE: &[&str] = &[
+    "phalanx-core",
+    "phalanx-io",
+    "phalanx-msg",
+    "phalanx-gen",
+    "phalanx-env",
+    "phalanx-plan",
+    "phalanx-render",
+];
 
 /// Crates that use the learned policies through phalanx-rl but never name burn themselves.
 const BURN_INDIRECT: &[&str] = &["phalanx-eval", "phalanx-py"];
@@ -60,6 +67,7 @@ const BURN_INDIRECT: &[&str] = &["phalanx-eval", "phalanx-py"];
 const PYO3_FREE: &[&str] = &[
     "phalanx-core",
     "phalanx-io",
+    "phalanx-msg",
     "phalanx-gen",
     "phalanx-env",
     "phalanx-plan",

@@ -1,8 +1,9 @@
 //! The bodies of the fuzz targets in `fuzz/` (cargo-fuzz, libFuzzer): every reader of a file
-//! a user may hand phalanx, the policy and checkpoint loaders, and the validator on arbitrary
-//! plans. Each body takes arbitrary bytes and must return without panicking; where the input
-//! is accepted it also checks a property (a written file reads back to the same value, the
-//! metrics of a valid plan are consistent).
+//! a user may hand phalanx, the policy and checkpoint loaders, the validator on arbitrary
+//! plans, and the decoder of the messages agent processes exchange. Each body takes arbitrary
+//! bytes and must return without panicking; where the input is accepted it also checks a
+//! property (a written file reads back to the same value, the metrics of a valid plan are
+//! consistent, a decoded message encodes to the same bytes).
 //!
 //! The bodies live here, not in `fuzz/`, so that the workspace tests replay the committed
 //! corpora and crash inputs (`tests/corpus.rs`) without libFuzzer, on the stable toolchain
@@ -28,6 +29,7 @@ pub const TARGETS: &[(&str, Body)] = &[
     ("validate", validate_plan),
     ("policy", policy),
     ("checkpoint", checkpoint),
+    ("message", message),
 ];
 
 /// A MovingAI `.map`: parsed, and when accepted written and parsed again to the same map.
@@ -176,4 +178,11 @@ pub fn policy(data: &[u8]) {
 pub fn checkpoint(data: &[u8]) {
     let file = as_file(&loader_input(data));
     let _ = phalanx_rl::Learner::load(file.path(), &Device::flex().autodiff());
+}
+
+/// A message of a decentralised run: decoded, and when accepted encoded to the same bytes.
+pub fn message(data: &[u8]) {
+    if let Ok(message) = phalanx_msg::decode(data) {
+        assert_eq!(message.encode(), data, "a decoded message encodes to other bytes");
+    }
 }
