@@ -5,6 +5,7 @@
 //! - [`replay`]: episode replay, padded episodes or windows with burn-in;
 //! - [`learner`]: VDN + double DQN with a target network and masked actions;
 //! - [`policy`]: acting, one episode or many in lockstep (batched inference, leader order);
+//! - [`agent`]: one agent acting alone on its own observation and message (decentralised);
 //! - [`eval`]: greedy evaluation on given instances, in lockstep batches;
 //! - [`hierarchy`]: the meta policy's low level over the two frozen policies and its training
 //!   environment ([`MetaEnv`]);
@@ -35,6 +36,7 @@
 //! learner.save("run/checkpoint.bin".as_ref())?;
 //! ```
 
+pub mod agent;
 pub mod checkpoint;
 pub mod eval;
 pub mod hierarchy;
@@ -50,6 +52,7 @@ pub mod settings;
 pub mod train;
 pub mod weight;
 
+pub use agent::{AgentError, AgentPolicy};
 pub use eval::evaluate_hierarchy;
 pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
 pub use hierarchy::{

@@ -228,12 +228,32 @@ impl Policy {
             &self.device,
         ); // [rows, 1, C, F, F]
         let vec = tensor3(vec, [rows, 1, vec_dim], &self.device); // [rows, 1, V]
+        self.recurrent_rows(grid, vec)
+    }
+
+    /// The recurrent step of prepared inputs (`grid [rows, 1, C, F, F]`, `vec [rows, 1, V]`
+    /// with the agent-slot one-hot), carrying the state: the features `[rows, 1, H]`.
+    ///
+    /// # Panics
+    /// If the rows differ from the last call's without a reset.
+    pub(crate) fn recurrent_rows(&mut self, grid: Tensor<5>, vec: Tensor<3>) -> Tensor<3> {
+        let rows = grid.dims()[0];
         if let Some(state) = &self.state {
             assert_eq!(state.layers[0].0.dims()[0], rows, "agent counts changed without a reset");
         }
         let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take()); // [rows, 1, H]
         self.state = Some(state);
         features
+    }
+
+    /// The head's Q-values `[n, 1, A]` of `features` `[n, 1, H]` with `message` `[n, 1, M]`.
+    pub(crate) fn head(&self, features: Tensor<3>, message: Tensor<3>) -> Tensor<3> {
+        self.net.head(features, message)
+    }
+
+    /// The device the network lives on.
+    pub(crate) fn device(&self) -> &Device {
+        &self.device
     }
 }
 

@@ -2,6 +2,7 @@
 //! cooperative problem the learner must solve.
 
 mod adapter;
+mod agent;
 mod checkpoint;
 mod corridor;
 mod learner;
