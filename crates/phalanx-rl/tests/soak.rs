@@ -7,6 +7,8 @@
 //! 128 episodes; `PHALANX_SOAK_EPISODES=10000 cargo test --release -p phalanx-rl --test
 //! soak` is the long soak of docs/learning.md.
 
+#![allow(clippy::print_stdout, reason = "the soak reports its figures")]
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
