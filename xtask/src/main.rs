@@ -61,7 +61,7 @@ const BURN_FREE: &[&str] = &[
 ];
 
 /// Crates that use the learned policies through phalanx-rl but never name burn themselves.
-const BURN_INDIRECT: &[&str] = &["phalanx-eval", "phalanx-py"];
+const BURN_INDIRECT: &[&str] = &["phalanx-eval", "phalanx-runtime", "phalanx-py"];
 
 /// Every crate but the Python package: none may depend on pyo3.
 const PYO3_FREE: &[&str] = &[
@@ -74,6 +74,7 @@ const PYO3_FREE: &[&str] = &[
     "phalanx-render",
     "phalanx-rl",
     "phalanx-eval",
+    "phalanx-runtime",
     "phalanx-cli",
     "phalanx-fuzz",
 ];

@@ -1,0 +1,21 @@
+//! Decentralised runs (docs/runtime.md): the world and every agent are state machines without
+//! IO that exchange only the messages of `phalanx_msg`, over a [`Transport`].
+//!
+//! - [`World`] owns the instance and the true state: each step it hands every agent its
+//!   observation and rank, collects the joint action (an agent that does not answer in time
+//!   waits), steps, and records the trajectory as a plan;
+//! - [`Agent`] holds one agent's policy: it acts when it has its observation and the actions
+//!   of every agent ranked before it this step, and publishes its action;
+//! - [`Transport`] carries bytes between them: [`inproc::Bus`] in one process (threads);
+//!   a network transport between processes;
+//! - [`run_world`] and [`run_agent`] drive the machines over a transport, every wait bounded
+//!   by a timeout.
+
+pub mod agent;
+pub mod inproc;
+pub mod transport;
+pub mod world;
+
+pub use agent::{Agent, AgentFault, Decide};
+pub use transport::{RunError, Topic, Transport, TransportError, run_agent, run_world};
+pub use world::{World, WorldFault};

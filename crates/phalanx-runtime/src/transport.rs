@@ -1,0 +1,133 @@
+//! What carries the messages, and the loops that drive the machines over it.
+
+use std::time::{Duration, Instant};
+
+use phalanx_msg::{Message, WireError, decode};
+
+use crate::{Agent, AgentFault, Decide, World, WorldFault};
+
+/// Where a message goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Topic {
+    /// To one agent (its observations).
+    Agent(u16),
+    /// To every agent and the world (actions).
+    Actions,
+    /// To every agent (the end of an episode).
+    Control,
+}
+
+/// A transport failed.
+#[derive(Debug, thiserror::Error)]
+pub enum TransportError {
+    /// The other side is gone.
+    #[error("the transport is closed: {0}")]
+    Closed(String),
+    /// The transport's own error.
+    #[error("transport: {0}")]
+    Other(String),
+}
+
+/// Carries encoded messages. A world subscribes to [`Topic::Actions`]; agent `i` to
+/// [`Topic::Agent`]`(i)`, [`Topic::Actions`] and [`Topic::Control`].
+pub trait Transport {
+    /// Publishes `bytes` on `topic`.
+    ///
+    /// # Errors
+    /// If the transport cannot send.
+    fn publish(&mut self, topic: Topic, bytes: Vec<u8>) -> Result<(), TransportError>;
+
+    /// The next message for this endpoint, waiting at most `timeout`; `None` when none came.
+    ///
+    /// # Errors
+    /// If the transport failed or closed.
+    fn receive(&mut self, timeout: Duration) -> Result<Option<Vec<u8>>, TransportError>;
+}
+
+/// Why a run stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The transport failed.
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+    /// A message that is not one.
+    #[error("a message that cannot be read: {0}")]
+    Wire(#[from] WireError),
+    /// The agent machine refused a message or its policy failed.
+    #[error(transparent)]
+    Agent(#[from] AgentFault),
+    /// The world machine failed.
+    #[error(transparent)]
+    World(#[from] WorldFault),
+    /// Nothing came from the world for this long.
+    #[error("no message from the world for {0:?}: is it running?")]
+    WorldSilent(Duration),
+}
+
+/// Runs `world`'s episode to its end over `transport`: each step it publishes the
+/// observations and collects the actions; when none comes for `step_timeout`, the first
+/// agent in the step's order not in waits this step and its wait is published for the agents
+/// after it (each agent that fails costs one timeout), then it steps. Returns when the episode ends; the end is published.
+///
+/// # Errors
+/// If the transport fails or the world cannot step.
+pub fn run_world(
+    world: &mut World,
+    transport: &mut impl Transport,
+    step_timeout: Duration,
+) -> Result<phalanx_msg::End, RunError> {
+    loop {
+        for obs in world.observations() {
+            let topic = Topic::Agent(obs.agent);
+            transport.publish(topic, Message::Observation(obs).encode())?;
+        }
+        let mut deadline = Instant::now() + step_timeout;
+        while !world.ready() {
+            let left = deadline.saturating_duration_since(Instant::now());
+            let heard = if left.is_zero() { None } else { transport.receive(left)? };
+            match heard {
+                Some(bytes) => {
+                    if let Ok(Message::Action(action)) = decode(&bytes) {
+                        world.receive(&action);
+                    }
+                }
+                None => {
+                    // The first agent not in waits this step; those after it hear so.
+                    if let Some(wait) = world.give_up_on_next() {
+                        transport.publish(Topic::Actions, Message::Action(wait).encode())?;
+                    }
+                    deadline = Instant::now() + step_timeout;
+                }
+            }
+        }
+        if let Some(end) = world.step()? {
+            transport.publish(Topic::Control, Message::End(end).encode())?;
+            return Ok(end);
+        }
+    }
+}
+
+/// Runs `agent` over `transport` until an episode ends (returned), or the world is silent for
+/// `silence` (an error).
+///
+/// # Errors
+/// If the transport fails, a message cannot be read, the policy fails, or the world is gone.
+pub fn run_agent<D: Decide>(
+    agent: &mut Agent<D>,
+    transport: &mut impl Transport,
+    silence: Duration,
+) -> Result<phalanx_msg::End, RunError> {
+    loop {
+        let Some(bytes) = transport.receive(silence)? else {
+            return Err(RunError::WorldSilent(silence));
+        };
+        let message = decode(&bytes)?;
+        if let Message::End(end) = message {
+            agent.end(end.episode);
+            return Ok(end);
+        }
+        if let Some(out) = agent.handle(message)? {
+            transport.publish(Topic::Actions, Message::Action(out).encode())?;
+        }
+    }
+}
