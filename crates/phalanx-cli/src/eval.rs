@@ -278,12 +278,12 @@ fn instances(cmd: &EvalCmd, task: Task, fov: u32) -> anyhow::Result<Vec<Instance
         .collect()
 }
 
-/// The report as a table.
 /// Bytes in MiB.
 fn mib(bytes: usize) -> f64 {
     bytes as f64 / f64::from(1 << 20)
 }
 
+/// The report as a table.
 fn text(r: &Report<'_>) -> String {
     let s = &r.summary;
     util::table(&[
