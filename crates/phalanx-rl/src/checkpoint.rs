@@ -85,6 +85,14 @@ impl Learner {
                     .into(),
             });
         };
+        let slots = file.header.net_config.n_agents_max;
+        let counts = &file.header.agent_counts;
+        if counts.is_empty() || counts.iter().any(|n| !(1..=slots).contains(n)) {
+            return Err(CheckpointError::Malformed {
+                path: path.to_path_buf(),
+                reason: format!("header: agent counts {counts:?} do not fit {slots} agent slots"),
+            });
+        }
         let mut learner = Learner::new(
             file.header.net_config.clone(),
             file.header.learner_config.clone(),
