@@ -18,6 +18,7 @@ mod memory;
 mod meta;
 mod plot;
 mod render;
+mod run;
 mod sim;
 mod solve;
 mod train;
@@ -58,6 +59,9 @@ enum Command {
     Sim(sim::SimCmd),
     /// Plan an instance with a centralised planner and write the plan (libMultiRobotPlanning YAML).
     Solve(solve::SolveCmd),
+    /// A decentralised run: the world and each agent deciding alone, exchanging only the
+    /// paper's messages (in one process, over the in-process bus).
+    Run(run::RunCmd),
     /// Train a path-finding, formation or meta policy (VDN + double DQN) on the training pool.
     Train(train::TrainCmd),
     /// Evaluate a trained policy on fresh maps (success rate, makespan, collisions, L_f).
@@ -97,6 +101,7 @@ fn main() -> ExitCode {
         Command::Validate(args) => validate::run(args),
         Command::Sim(cmd) => sim::run(cmd),
         Command::Solve(cmd) => solve::run(cmd),
+        Command::Run(cmd) => run::run(cmd),
         Command::Train(cmd) => train::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
         Command::Weight(cmd) => weight::run(cmd),

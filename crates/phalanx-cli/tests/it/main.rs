@@ -551,3 +551,25 @@ fn a_run_past_its_memory_bound_ends_with_a_message_and_keeps_the_output() {
     let (_, stderr) = check(&phalanx(d, &["--memory-limit=0", "info", "small.yaml"]), 2);
     assert!(stderr.contains("must be positive"), "{stderr}");
 }
+
+#[test]
+fn a_decentralised_run_plans_what_the_batched_policy_plans() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = ["gen", "--size", "20", "--agents", "4", "--seed", "5", "-o", "inst.yaml"];
+    check(&phalanx(d, &args), 0);
+    let (table, _) = check(&phalanx(d, &["run", "inst.yaml", "-o", "run.yaml"]), 0);
+    assert!(table.contains("outcome: solved") && table.contains("missed_actions: 0"), "{table}");
+    let solve = ["solve", "inst.yaml", "--planner", "pathfinding", "--rollouts", "1"];
+    check(&phalanx(d, &[&solve[..], &["-o", "solve.yaml"]].concat()), 0);
+    let names = phalanx_io::read_instance(&d.join("inst.yaml"), None).unwrap().names;
+    let plan = |file: &str| phalanx_io::read_plan_for(&d.join(file), &names).unwrap();
+    assert_eq!(plan("run.yaml"), plan("solve.yaml"));
+    let (json, _) = check(&phalanx(d, &["run", "inst.yaml", "--json"]), 0);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!((v["outcome"].as_str(), v["stale_actions"].as_u64()), (Some("solved"), Some(0)));
+    let (_, stderr) = check(&phalanx(d, &["run", "inst.yaml", "--step-timeout", "0"]), 2);
+    assert!(stderr.contains("--step-timeout"), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["run", "missing.yaml"]), 2);
+    assert!(stderr.contains("missing.yaml"), "{stderr}");
+}
