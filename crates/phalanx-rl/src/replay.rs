@@ -265,7 +265,8 @@ impl Replay {
     /// An empty buffer holding at most `capacity` episodes of `n_agents` agents.
     pub fn new(capacity: usize, n_agents: usize, shape: ObsShape) -> Self {
         assert!(capacity > 0, "replay capacity must be positive");
-        Self { capacity, n_agents, shape, episodes: VecDeque::with_capacity(capacity.min(1024)) }
+        // It grows as it fills: a checkpoint naming many team sizes reserves little up front.
+        Self { capacity, n_agents, shape, episodes: VecDeque::with_capacity(capacity.min(64)) }
     }
 
     /// Agents per stored episode.
