@@ -45,9 +45,7 @@ impl Bounded {
         }
         PEAK.fetch_max(held, Ordering::Relaxed);
     }
-}
 
-impl Bounded {
     /// `ptr`, uncounting `size` if the system refused the allocation (null).
     fn held(ptr: *mut u8, size: usize) -> *mut u8 {
         if ptr.is_null() {

@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use phalanx_msg::{Message, WireError, decode};
 
-use crate::{Agent, AgentFault, Decide, World, WorldFault};
+use crate::{Agent, AgentFault, Decide, World};
 
 /// Where a message goes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -56,9 +56,6 @@ pub enum RunError {
     /// The agent machine refused a message or its policy failed.
     #[error(transparent)]
     Agent(#[from] AgentFault),
-    /// The world machine failed.
-    #[error(transparent)]
-    World(#[from] WorldFault),
     /// Nothing came from the world for this long.
     #[error("no message from the world for {0:?}: is it running?")]
     WorldSilent(Duration),
@@ -70,7 +67,7 @@ pub enum RunError {
 /// after it (each agent that fails costs one timeout), then it steps. Returns when the episode ends; the end is published.
 ///
 /// # Errors
-/// If the transport fails or the world cannot step.
+/// If the transport fails.
 pub fn run_world(
     world: &mut World,
     transport: &mut impl Transport,
@@ -100,7 +97,7 @@ pub fn run_world(
                 }
             }
         }
-        if let Some(end) = world.step()? {
+        if let Some(end) = world.step() {
             transport.publish(Topic::Control, Message::End(end).encode())?;
             return Ok(end);
         }

@@ -115,12 +115,9 @@ impl World {
     }
 
     /// Steps with the actions in (an agent without one waits); `Some` when the episode ended.
-    ///
-    /// # Errors
-    /// Never today; the environment's errors when it has some.
-    pub fn step(&mut self) -> Result<Option<End>, WorldFault> {
+    pub fn step(&mut self) -> Option<End> {
         if let Some(end) = self.end {
-            return Ok(Some(end));
+            return Some(end);
         }
         let joint: Vec<u8> = self
             .actions
@@ -144,7 +141,7 @@ impl World {
             None
         };
         self.end = reason.map(|reason| End { episode: self.episode, steps: self.step, reason });
-        Ok(self.end)
+        self.end
     }
 
     /// The trajectory so far, one joint position per step.
