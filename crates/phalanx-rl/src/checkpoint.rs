@@ -11,8 +11,8 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::learner::Learner;
 use crate::policy_file::{
-    CheckpointError, Header, MAGIC, POLICY_MAGIC, VERSION, apply, read_file, record_error,
-    sections, write_atomic,
+    CheckpointError, Header, MAGIC, POLICY_MAGIC, VERSION, apply, check_record, param_shapes,
+    read_file, record_error, sections, write_atomic,
 };
 
 impl Learner {
@@ -102,6 +102,7 @@ impl Learner {
         );
         learner.online = apply(learner.online, &file.online, path, "online")?;
         learner.target = apply(learner.target, &target, path, "target")?;
+        check_record(&optim, path, "optimizer", Some(&param_shapes(&learner.online)))?;
         learner.optim = learner
             .optim
             .from_bytes(Bytes::from_bytes_vec(optim))

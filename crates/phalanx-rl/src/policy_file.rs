@@ -11,12 +11,13 @@
 //! `PHXRLPL1`: the same sections without CRCs, written before checksums existed) are still
 //! read, unchecked. A loaded network whose weights are not all finite is refused.
 
+use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::store::ModuleRecord;
-use burn::tensor::{Bytes, Device, Tensor};
+use burn::tensor::{Bytes, DType, Device, Tensor};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -284,6 +285,7 @@ pub(crate) fn apply(
     path: &Path,
     section: &'static str,
 ) -> Result<QNet, CheckpointError> {
+    check_record(bytes, path, section, None)?;
     let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
         .map_err(|err| record_error(path, section, err))?;
     let net = net.try_load_record(record).map_err(|err| record_error(path, section, err))?;
@@ -291,6 +293,68 @@ pub(crate) fn apply(
         return Err(CheckpointError::NonFinite { path: path.to_path_buf(), section });
     }
     Ok(net)
+}
+
+/// The shape of every parameter of `net`, by parameter id: what an optimiser record's
+/// tensors must match.
+pub(crate) fn param_shapes(net: &QNet) -> BTreeMap<u64, Vec<usize>> {
+    struct Shapes(BTreeMap<u64, Vec<usize>>);
+    impl ModuleVisitor for Shapes {
+        fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+            self.0.insert(param.id.val(), param.lazy_shape().as_slice().to_vec());
+        }
+    }
+    let mut shapes = Shapes(BTreeMap::new());
+    net.visit(&mut shapes);
+    shapes.0
+}
+
+/// Refuses a record (section `section` of `path`) that burn would read but that would make it
+/// panic later: a tensor that is not `f32` (the network has float weights only) or whose
+/// bytes do not fill its shape; for an optimiser record (`params`: the network's parameter
+/// shapes by id), a tensor without a parameter id, or whose parameter is not the network's or
+/// has another shape, and a parameter's rank recorded other than its own.
+pub(crate) fn check_record(
+    bytes: &[u8],
+    path: &Path,
+    section: &'static str,
+    params: Option<&BTreeMap<u64, Vec<usize>>>,
+) -> Result<(), CheckpointError> {
+    let refuse = |message: String| record_error(path, section, message);
+    let reader = burn_pack::Reader::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
+        .map_err(|err| refuse(err.to_string()))?;
+    if let Some(params) = params {
+        for (key, value) in reader.scalars() {
+            let Some((id, field)) = key.split_once('.') else { continue };
+            let param = id.parse::<u64>().ok().and_then(|id| params.get(&id));
+            let Some(shape) = param else {
+                return Err(refuse(format!("state {key} of a parameter the network has not")));
+            };
+            if field == "__rank" && usize::try_from(*value).ok() != Some(shape.len()) {
+                return Err(refuse(format!("state {key}: rank {value:?}, not {}", shape.len())));
+            }
+        }
+    }
+    for tensor in reader.into_tensors().map_err(|err| refuse(err.to_string()))? {
+        let name = &tensor.name;
+        if tensor.dtype != DType::F32 {
+            return Err(refuse(format!("tensor {name} is {:?}, not F32", tensor.dtype)));
+        }
+        let dims = tensor.shape.as_slice();
+        let numel = dims.iter().try_fold(4usize, |n, &d| n.checked_mul(d));
+        if numel != Some(tensor.byte_len()) {
+            return Err(refuse(format!("tensor {name}: its bytes do not fill shape {dims:?}")));
+        }
+        if let Some(params) = params {
+            let shape = tensor.param_id.and_then(|id| params.get(&id));
+            if shape != Some(&dims.to_vec()) {
+                return Err(refuse(format!(
+                    "state {name} (shape {dims:?}) fits no parameter of the network"
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Whether every weight of `net` is finite.

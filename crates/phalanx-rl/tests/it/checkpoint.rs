@@ -258,3 +258,60 @@ fn a_resumed_run_continues_exactly() {
     assert!(!learner.restore_collection(&path, &mut envs()).unwrap());
     assert!(learner.replays()[0].is_empty());
 }
+
+/// The checkpoint at `path` with section `index` (1 online, 3 optimiser) rewritten by `edit`
+/// tensor by tensor, keeping the burnpack scalars, and every section's CRC-32 recomputed.
+fn rewrite_section(path: &Path, index: usize, edit: &dyn Fn(&mut burn_pack::Tensor)) -> Vec<u8> {
+    let bytes = std::fs::read(path).unwrap();
+    let mut parts: Vec<Vec<u8>> = Vec::new();
+    let mut rest = &bytes[8..];
+    while !rest.is_empty() {
+        let len = u64::from_le_bytes(rest[..8].try_into().unwrap()) as usize;
+        parts.push(rest[8..8 + len].to_vec());
+        rest = &rest[8 + len + 4..];
+    }
+    let section = burn::tensor::Bytes::from_bytes_vec(parts[index].clone());
+    let reader = burn_pack::Reader::from_bytes(section).unwrap();
+    let scalars = reader.scalars().clone();
+    let mut tensors = reader.into_tensors().unwrap();
+    assert!(!tensors.is_empty(), "section {index} holds tensors");
+    tensors.iter_mut().for_each(edit);
+    let mut writer = burn_pack::Writer::new(tensors);
+    for (key, value) in &scalars {
+        writer = writer.with_scalar(key, *value);
+    }
+    parts[index] = writer.into_bytes().unwrap().to_vec();
+    let mut out = bytes[..8].to_vec();
+    for part in &parts {
+        out.extend_from_slice(&(part.len() as u64).to_le_bytes());
+        out.extend_from_slice(part);
+        out.extend_from_slice(&crc32fast::hash(part).to_le_bytes());
+    }
+    out
+}
+
+#[test]
+fn records_burn_would_panic_on_are_refused() {
+    let device = crate::train_device();
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.ckpt");
+    trained_learner(&device).save(&good).unwrap();
+    let bad = dir.path().join("bad.ckpt");
+    type Edit = Box<dyn Fn(&mut burn_pack::Tensor)>;
+    let cases: [(usize, &str, Edit); 4] = [
+        // Found by the `checkpoint` fuzz target: a weight stored as I32 panicked inside burn.
+        (1, "not F32", Box::new(|t| t.dtype = burn_pack::DType::I32)),
+        (3, "not F32", Box::new(|t| t.dtype = burn_pack::DType::I32)),
+        // An Adam moment of another shape than its parameter, or of no parameter.
+        (3, "fits no parameter", Box::new(|t| t.shape = [t.byte_len() / 4].into())),
+        (3, "fits no parameter", Box::new(|t| t.param_id = None)),
+    ];
+    for (section, expected, edit) in cases {
+        std::fs::write(&bad, rewrite_section(&good, section, &*edit)).unwrap();
+        let err = Learner::load(&bad, &device).err().expect("refused");
+        let text = err.to_string();
+        assert!(matches!(err, CheckpointError::Record { .. }), "{text}");
+        assert!(text.contains(expected) && text.contains("bad.ckpt"), "{text}");
+    }
+    assert!(Learner::load(&good, &device).is_ok());
+}
