@@ -3,7 +3,8 @@
 //! - `cargo xtask tidy`: every `.rs` file starts with a `//!` paragraph, no trailing
 //!   whitespace, no `#[should_panic]`, no `#[ignore]`.
 //! - `cargo xtask deps`: the dependency invariants of ARCHITECTURE.md (no burn below the
-//!   learning crates; the benchmark uses them without naming burn).
+//!   learning crates; the benchmark uses them without naming burn; pyo3 in the Python
+//!   package only, zenoh in the transport crate only).
 //! - `cargo xtask demo`: the README's main job, end to end on generated data.
 //! - `cargo xtask test [CARGO TEST FLAGS]`: the README's test command: every Rust test
 //!   (`cargo test --workspace --all-targets`), then the Python package's tests (a virtualenv
@@ -54,6 +55,7 @@ const BURN_FREE: &[&str] = &[
     "phalanx-core",
     "phalanx-io",
     "phalanx-msg",
+    "phalanx-motion",
     "phalanx-gen",
     "phalanx-env",
     "phalanx-plan",
@@ -63,21 +65,23 @@ const BURN_FREE: &[&str] = &[
 /// Crates that use the learned policies through phalanx-rl but never name burn themselves.
 const BURN_INDIRECT: &[&str] = &["phalanx-eval", "phalanx-runtime", "phalanx-py"];
 
-/// Every crate but the Python package: none may depend on pyo3.
-const PYO3_FREE: &[&str] = &[
-    "phalanx-core",
-    "phalanx-io",
-    "phalanx-msg",
-    "phalanx-gen",
-    "phalanx-env",
-    "phalanx-plan",
-    "phalanx-render",
-    "phalanx-rl",
-    "phalanx-eval",
-    "phalanx-runtime",
-    "phalanx-cli",
-    "phalanx-fuzz",
-];
+/// The crates that may have `zenoh` among their dependencies: the transport crate, and the
+/// binary through it.
+const ZENOH_USERS: &[&str] = &["phalanx-zenoh", "phalanx-cli"];
+
+/// The workspace's crates: the folders of `crates/`, each named as its package.
+fn crates() -> anyhow::Result<Vec<String>> {
+    let dir = xtask::workspace_root().join("crates");
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(&dir).with_context(|| format!("reading {}", dir.display()))? {
+        let path = entry?.path();
+        if path.join("Cargo.toml").is_file() {
+            names.extend(path.file_name().and_then(|n| n.to_str()).map(str::to_owned));
+        }
+    }
+    names.sort();
+    Ok(names)
+}
 
 fn deps() -> anyhow::Result<()> {
     for krate in BURN_FREE {
@@ -91,9 +95,23 @@ fn deps() -> anyhow::Result<()> {
             bail!("{krate} depends on burn directly ({line}); it must go through phalanx-rl");
         }
     }
-    for krate in PYO3_FREE {
-        if let Some(line) = tree(krate, &[])?.lines().find(|l| l.starts_with("pyo3")) {
+    for krate in crates()? {
+        let all = tree(&krate, &[])?;
+        if krate != "phalanx-py"
+            && let Some(line) = all.lines().find(|l| l.starts_with("pyo3"))
+        {
             bail!("{krate} depends on pyo3 ({line}); only phalanx-py may");
+        }
+        let zenoh = |l: &&str| l.starts_with("zenoh ");
+        if !ZENOH_USERS.contains(&krate.as_str())
+            && let Some(line) = all.lines().find(zenoh)
+        {
+            bail!("{krate} depends on zenoh ({line}); only phalanx-zenoh may");
+        }
+        if krate == "phalanx-cli"
+            && let Some(line) = tree(&krate, &["--depth", "1"])?.lines().find(zenoh)
+        {
+            bail!("{krate} depends on zenoh directly ({line}); it must go through phalanx-zenoh");
         }
     }
     println!("dependency invariants hold");

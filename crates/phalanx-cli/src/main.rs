@@ -6,8 +6,10 @@
 //! the dispatch. To add one: write `src/<name>.rs`, add a variant and a match arm.
 //! Exit codes: 0 success, 1 an invalid plan (`validate`) or no plan, 2 bad input (unreadable
 //! or malformed files, bad flags), 3 an output that cannot be written, 4 no plan from an
-//! incomplete planner, 5 the memory bound ([`memory`]); see [`util`].
+//! incomplete planner, 5 the memory bound ([`memory`]), 6 a peer of a decentralised run gone;
+//! see [`util`].
 
+mod agent;
 mod bench;
 mod demo;
 mod eval;
@@ -16,6 +18,7 @@ mod generate;
 mod info;
 mod memory;
 mod meta;
+mod motion;
 mod plot;
 mod render;
 mod run;
@@ -25,6 +28,7 @@ mod train;
 mod util;
 mod validate;
 mod weight;
+mod world;
 
 use std::io::Write as _;
 use std::process::ExitCode;
@@ -60,8 +64,14 @@ enum Command {
     /// Plan an instance with a centralised planner and write the plan (libMultiRobotPlanning YAML).
     Solve(solve::SolveCmd),
     /// A decentralised run: the world and each agent deciding alone, exchanging only the
-    /// paper's messages (in one process, over the in-process bus).
+    /// paper's messages (threads over the in-process bus, or processes over Zenoh).
     Run(run::RunCmd),
+    /// The world of a decentralised run as a process: owns the instance, hands out the
+    /// observations over Zenoh, collects the actions, writes the trajectory.
+    World(world::WorldCmd),
+    /// One agent of a decentralised run as a process: decides from its own observation and
+    /// the actions of the agents before it, over Zenoh.
+    Agent(agent::AgentCmd),
     /// Train a path-finding, formation or meta policy (VDN + double DQN) on the training pool.
     Train(train::TrainCmd),
     /// Evaluate a trained policy on fresh maps (success rate, makespan, collisions, L_f).
@@ -73,6 +83,9 @@ enum Command {
     Demo(demo::Args),
     /// Draw a plan: an animated SVG or GIF, or a PNG of one step.
     Render(render::Args),
+    /// Drive a plan with car-like robots (Ackermann steering): tracking errors, the closest
+    /// two cars came, the trajectory as CSV or JSON.
+    Motion(motion::Args),
     /// Benchmark every method on the same fresh instances (Table II, the Pareto front).
     #[command(subcommand)]
     Bench(bench::BenchCmd),
@@ -102,10 +115,13 @@ fn main() -> ExitCode {
         Command::Sim(cmd) => sim::run(cmd),
         Command::Solve(cmd) => solve::run(cmd),
         Command::Run(cmd) => run::run(cmd),
+        Command::World(cmd) => world::run(cmd),
+        Command::Agent(cmd) => agent::run(cmd),
         Command::Train(cmd) => train::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
         Command::Weight(cmd) => weight::run(cmd),
         Command::Render(args) => render::run(args),
+        Command::Motion(args) => motion::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Bench(cmd) => bench::run(cmd),
     };

@@ -1,22 +1,22 @@
 //! `phalanx run`: a decentralised run of the path-finding policy. The world and every agent
-//! are threads of one process that exchange only the paper's messages (observations, actions,
-//! the end) over the in-process bus of phalanx-runtime (docs/runtime.md); the trajectory is
-//! scored by the one validator and printed as `phalanx solve` prints a plan. Its plan is the
-//! plan of `phalanx solve --planner pathfinding --rollouts 1`.
+//! exchange only the paper's messages (observations, actions, the end; docs/runtime.md): as
+//! threads of one process over the in-process bus of phalanx-runtime, or with `--processes`
+//! as processes of their own (`phalanx world` and one `phalanx agent` each) over Zenoh on
+//! loopback. The trajectory is scored by the one validator and printed as `phalanx solve`
+//! prints a plan; either way it is the plan of `phalanx solve --planner pathfinding
+//! --rollouts 1`.
 
-use std::path::PathBuf;
-use std::process::ExitCode;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use burn::tensor::Device;
 use phalanx_env::EnvConfig;
-use phalanx_io::PlanStats;
-use phalanx_msg::EndReason;
+use phalanx_io::{NamedInstance, PlanStats};
+use phalanx_msg::{End, EndReason};
 use phalanx_plan::SolveSummary;
 use phalanx_plan::planner::Outcome;
-use phalanx_rl::policy_file::load_policy_any;
-use phalanx_rl::{AgentPolicy, models};
+use phalanx_rl::{AgentPolicy, Policy, models};
 use phalanx_runtime::{Agent, World, inproc, run_agent, run_world};
 
 use crate::util;
@@ -36,6 +36,14 @@ pub(crate) struct RunCmd {
     /// step, milliseconds.
     #[arg(long, default_value_t = 2000, value_name = "MS")]
     step_timeout: u64,
+    /// The world and every agent as processes of their own (`phalanx world`, `phalanx
+    /// agent`) over Zenoh, instead of threads of this one.
+    #[arg(long)]
+    processes: bool,
+    /// With --processes: the Zenoh endpoint the world listens on (default: a free port on
+    /// loopback).
+    #[arg(long, value_name = "ENDPOINT", requires = "processes")]
+    listen: Option<String>,
     /// Write the trajectory as a libMultiRobotPlanning plan (when it reaches the goals).
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -44,28 +52,79 @@ pub(crate) struct RunCmd {
     json: bool,
 }
 
-/// Runs `phalanx run`.
-pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
-    let named = util::read_instance(&cmd.instance, cmd.agents)?;
-    let instance = &named.instance;
-    let file = models::weights_file(cmd.weights.as_deref(), "pathfinding")?;
-    let (policy, header) =
-        load_policy_any(&file, &Device::flex()).context("loading the pathfinding policy")?;
-    let n = instance.n_agents();
+/// The path-finding policy of `weights` (or the shipped one) for a team of `n` agents.
+pub(crate) fn policy_for(weights: Option<&Path>, n: usize) -> anyhow::Result<Policy> {
+    let (policy, header, file) = models::load_with_header(weights, "pathfinding")
+        .context("loading the pathfinding policy")?;
     let slots = header.net_config.n_agents_max;
     anyhow::ensure!(
         n <= slots,
-        "{}: {n} agents, the policy takes at most {slots}",
-        cmd.instance.display()
+        "{}: a team of {n} agents, the policy takes at most {slots}",
+        file.display()
     );
-    anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
-    let config = EnvConfig {
-        fov: header.net_config.fov as u32,
-        step_limit: Some(3 * instance.grid().side()),
-        ..EnvConfig::default()
+    Ok(policy)
+}
+
+/// The world of `instance` for a policy of field of view `fov`, with the step limit of
+/// docs/spec.md §4 (three times the map side).
+pub(crate) fn world_for(named: &NamedInstance, path: &Path, fov: u32) -> anyhow::Result<World> {
+    let instance = &named.instance;
+    let config =
+        EnvConfig { fov, step_limit: Some(3 * instance.grid().side()), ..EnvConfig::default() };
+    World::new(instance, config, 0)
+        .with_context(|| format!("{}: the world refuses the instance", path.display()))
+}
+
+/// Scores the world's trajectory with the one validator and prints it as `phalanx solve`
+/// does, with the actions missed and stale; writes the plan to `output` when it reached the
+/// goals. Exit 0 when it did, 1 otherwise.
+pub(crate) fn report(
+    named: &NamedInstance,
+    world: &World,
+    end: End,
+    runtime_s: f64,
+    output: Option<&Path>,
+    json: bool,
+) -> anyhow::Result<ExitCode> {
+    let instance = &named.instance;
+    let plan = world.plan();
+    let result = match end.reason {
+        EndReason::Done => Ok(plan),
+        EndReason::StepLimit | EndReason::Stopped => Err(Outcome::StepLimit),
     };
-    let mut world = World::new(instance, config, 0)
-        .with_context(|| format!("{}: the world refuses the instance", cmd.instance.display()))?;
+    let summary = SolveSummary::of(instance, "pathfinding (decentralised)", result, runtime_s);
+    if let (Some(path), Outcome::Solved) = (output, summary.outcome) {
+        let stats = PlanStats::of(plan, runtime_s);
+        util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
+    }
+    if json {
+        let mut value = serde_json::to_value(&summary)?;
+        value["missed_actions"] = world.missed().into();
+        value["missed_by_agent"] = world.missed_by_agent().into();
+        value["stale_actions"] = world.stale().into();
+        util::print_json(&value)?;
+    } else {
+        util::print(&format!(
+            "{}\nmissed_actions: {}\nmissed_by_agent: {:?}\nstale_actions: {}\n",
+            summary.to_text(),
+            world.missed(),
+            world.missed_by_agent(),
+            world.stale()
+        ))?;
+    }
+    Ok(if summary.outcome == Outcome::Solved { ExitCode::SUCCESS } else { ExitCode::from(1) })
+}
+
+/// Runs `phalanx run`.
+pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
+    let named = util::read_instance(&cmd.instance, cmd.agents)?;
+    let n = named.instance.n_agents();
+    let policy = policy_for(cmd.weights.as_deref(), n)?;
+    if cmd.processes {
+        return processes(&cmd, n, policy.config().fov as u32);
+    }
+    let mut world = world_for(&named, &cmd.instance, policy.config().fov as u32)?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();
@@ -91,28 +150,84 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
         end
     })?;
     let runtime_s = started.elapsed().as_secs_f64();
-    let plan = world.plan();
-    let result = match end.reason {
-        EndReason::Done => Ok(plan),
-        EndReason::StepLimit | EndReason::Stopped => Err(Outcome::StepLimit),
+    report(&named, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
+}
+
+/// `phalanx run --processes`: starts `phalanx world` and one `phalanx agent` per agent (this
+/// same binary), all on loopback under a key prefix of this run's own, and waits for them.
+/// The world prints the result; its exit code is the run's, unless an agent failed.
+fn processes(cmd: &RunCmd, n: usize, fov: u32) -> anyhow::Result<ExitCode> {
+    let exe = std::env::current_exe().context("finding the phalanx binary")?;
+    let endpoint = match &cmd.listen {
+        Some(endpoint) => endpoint.clone(),
+        None => format!("tcp/127.0.0.1:{}", free_port()?),
     };
-    let summary = SolveSummary::of(instance, "pathfinding (decentralised)", result, runtime_s);
-    if let (Some(path), Outcome::Solved) = (&cmd.output, summary.outcome) {
-        let stats = PlanStats::of(plan, runtime_s);
-        util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
+    let prefix = format!("phalanx/run-{}", std::process::id());
+    let mut world = Command::new(&exe);
+    world.arg("world").arg(&cmd.instance).args(["--listen", &endpoint, "--prefix", &prefix]);
+    world.args(["--fov", &fov.to_string(), "--step-timeout", &cmd.step_timeout.to_string()]);
+    if let Some(agents) = cmd.agents {
+        world.args(["--agents", &agents.to_string()]);
+    }
+    if let Some(output) = &cmd.output {
+        world.arg("--output").arg(output);
     }
     if cmd.json {
-        let mut value = serde_json::to_value(&summary)?;
-        value["missed_actions"] = world.missed().into();
-        value["stale_actions"] = world.stale().into();
-        util::print_json(&value)?;
-    } else {
-        util::print(&format!(
-            "{}\nmissed_actions: {}\nstale_actions: {}\n",
-            summary.to_text(),
-            world.missed(),
-            world.stale()
-        ))?;
+        world.arg("--json");
     }
-    Ok(if summary.outcome == Outcome::Solved { ExitCode::SUCCESS } else { ExitCode::from(1) })
+    let mut world = world.stdin(Stdio::null()).spawn().context("starting the world process")?;
+    let mut agents: Vec<Child> = Vec::with_capacity(n);
+    for id in 0..n {
+        let mut agent = Command::new(&exe);
+        agent.args(["agent", "--id", &id.to_string(), "--connect", &endpoint, "--prefix", &prefix]);
+        if let Some(weights) = &cmd.weights {
+            agent.arg("--weights").arg(weights);
+        }
+        let spawned = agent.stdin(Stdio::null()).stdout(Stdio::null()).spawn();
+        match spawned {
+            Ok(child) => agents.push(child),
+            Err(err) => {
+                for child in agents.iter_mut().chain([&mut world]) {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                }
+                return Err(err).context(format!("starting agent {id}'s process"));
+            }
+        }
+    }
+    let status = world.wait().context("waiting for the world process")?;
+    // The agents end with the episode; one still running after a grace period is stopped.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let mut failed = Vec::new();
+    for (id, agent) in agents.iter_mut().enumerate() {
+        let code = loop {
+            match agent.try_wait().context("waiting for an agent process")? {
+                Some(status) => break status.code(),
+                None if Instant::now() >= deadline => {
+                    let _ = agent.kill();
+                    let _ = agent.wait();
+                    break None;
+                }
+                None => std::thread::sleep(Duration::from_millis(10)),
+            }
+        };
+        if code != Some(0) {
+            failed.push(format!("agent {id} ended with {code:?}"));
+        }
+    }
+    let code = status.code().and_then(|c| u8::try_from(c).ok()).unwrap_or(util::EXIT_PEER_GONE);
+    if !failed.is_empty() {
+        util::warn(&format!("warning: {}", failed.join("; ")));
+        if code == 0 {
+            return Ok(ExitCode::from(util::EXIT_PEER_GONE));
+        }
+    }
+    Ok(ExitCode::from(code))
+}
+
+/// A TCP port free on loopback now (the system's choice).
+fn free_port() -> anyhow::Result<u16> {
+    let listener =
+        std::net::TcpListener::bind("127.0.0.1:0").context("finding a free loopback port")?;
+    Ok(listener.local_addr().context("finding a free loopback port")?.port())
 }

@@ -58,6 +58,15 @@ pub(crate) const EXIT_RUNTIME: u8 = 3;
 /// An incomplete planner (prioritised A*) found no plan: the instance may still be solvable.
 pub(crate) const EXIT_INCOMPLETE: u8 = 4;
 
+/// A peer of a decentralised run is gone: the world stopped answering an agent, or the
+/// others never joined.
+pub(crate) const EXIT_PEER_GONE: u8 = 6;
+
+/// Marks an error as a peer of a decentralised run gone (exit [`EXIT_PEER_GONE`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub(crate) struct PeerGone(pub(crate) String);
+
 /// Marks an error as a failed write of an output (exit [`EXIT_RUNTIME`], not bad input).
 #[derive(Debug, thiserror::Error)]
 #[error("writing {0}")]
@@ -71,10 +80,16 @@ where
     result.map_err(|err| err.into().context(WriteFailed(what.display().to_string())))
 }
 
-/// The exit code of a failed command: [`EXIT_RUNTIME`] for a failed write, else
-/// [`EXIT_BAD_INPUT`].
+/// The exit code of a failed command: [`EXIT_RUNTIME`] for a failed write,
+/// [`EXIT_PEER_GONE`] for a decentralised run's missing peer, else [`EXIT_BAD_INPUT`].
 pub(crate) fn exit_code(err: &anyhow::Error) -> u8 {
-    if err.downcast_ref::<WriteFailed>().is_some() { EXIT_RUNTIME } else { EXIT_BAD_INPUT }
+    if err.downcast_ref::<WriteFailed>().is_some() {
+        EXIT_RUNTIME
+    } else if err.downcast_ref::<PeerGone>().is_some() {
+        EXIT_PEER_GONE
+    } else {
+        EXIT_BAD_INPUT
+    }
 }
 
 /// A flag value that is a finite number of at least 0.

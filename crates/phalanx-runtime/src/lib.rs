@@ -17,5 +17,7 @@ pub mod transport;
 pub mod world;
 
 pub use agent::{Agent, AgentFault, Decide};
-pub use transport::{RunError, Topic, Transport, TransportError, run_agent, run_world};
+pub use transport::{
+    RunError, Topic, Transport, TransportError, run_agent, run_world, run_world_paced,
+};
 pub use world::{World, WorldFault};

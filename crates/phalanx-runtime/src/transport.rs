@@ -42,7 +42,24 @@ pub trait Transport {
     /// # Errors
     /// If the transport failed or closed.
     fn receive(&mut self, timeout: Duration) -> Result<Option<Vec<u8>>, TransportError>;
+
+    /// Whether the transport knows agent `agent`'s process to be gone (a network transport
+    /// that tracks its peers); the world then gives up on it at once instead of waiting out
+    /// the step timeout. `false` when it cannot tell.
+    fn agent_gone(&self, agent: u16) -> bool {
+        let _ = agent;
+        false
+    }
+
+    /// Whether the transport knows the world's process to be gone; an agent then stops at
+    /// once. `false` when it cannot tell.
+    fn world_gone(&self) -> bool {
+        false
+    }
 }
+
+/// How often the loops look at the transport's knowledge of its peers while they wait.
+const POLL: Duration = Duration::from_millis(20);
 
 /// Why a run stopped.
 #[derive(Debug, thiserror::Error)]
@@ -59,12 +76,16 @@ pub enum RunError {
     /// Nothing came from the world for this long.
     #[error("no message from the world for {0:?}: is it running?")]
     WorldSilent(Duration),
+    /// The world's process is gone (the transport saw it leave) before the episode ended.
+    #[error("the world's process is gone before the episode ended")]
+    WorldGone,
 }
 
 /// Runs `world`'s episode to its end over `transport`: each step it publishes the
-/// observations and collects the actions; when none comes for `step_timeout`, the first
-/// agent in the step's order not in waits this step and its wait is published for the agents
-/// after it (each agent that fails costs one timeout), then it steps. Returns when the episode ends; the end is published.
+/// observations and collects the actions; when none comes for `step_timeout`, or at once when
+/// the transport knows its process gone, the first agent in the step's order not in waits this
+/// step and its wait is published for the agents after it (each agent that fails costs at most
+/// one timeout), then it steps. Returns when the episode ends; the end is published.
 ///
 /// # Errors
 /// If the transport fails.
@@ -73,7 +94,28 @@ pub fn run_world(
     transport: &mut impl Transport,
     step_timeout: Duration,
 ) -> Result<phalanx_msg::End, RunError> {
+    run_world_paced(world, transport, step_timeout, Duration::ZERO)
+}
+
+/// [`run_world`] at a control rate: a step starts at least `period` after the one before
+/// (a robot team stepping at a fixed rate; `Duration::ZERO` steps as fast as the agents
+/// answer).
+///
+/// # Errors
+/// If the transport fails.
+pub fn run_world_paced(
+    world: &mut World,
+    transport: &mut impl Transport,
+    step_timeout: Duration,
+    period: Duration,
+) -> Result<phalanx_msg::End, RunError> {
+    let mut next_step = Instant::now();
     loop {
+        let now = Instant::now();
+        if next_step > now {
+            std::thread::sleep(next_step - now);
+        }
+        next_step = Instant::now() + period;
         for obs in world.observations() {
             let topic = Topic::Agent(obs.agent);
             transport.publish(topic, Message::Observation(obs).encode())?;
@@ -81,20 +123,19 @@ pub fn run_world(
         let mut deadline = Instant::now() + step_timeout;
         while !world.ready() {
             let left = deadline.saturating_duration_since(Instant::now());
-            let heard = if left.is_zero() { None } else { transport.receive(left)? };
-            match heard {
-                Some(bytes) => {
-                    if let Ok(Message::Action(action)) = decode(&bytes) {
-                        world.receive(&action);
-                    }
+            let gone = world.next_missing().is_some_and(|agent| transport.agent_gone(agent));
+            let heard =
+                if left.is_zero() || gone { None } else { transport.receive(left.min(POLL))? };
+            if let Some(bytes) = heard {
+                if let Ok(Message::Action(action)) = decode(&bytes) {
+                    world.receive(&action);
                 }
-                None => {
-                    // The first agent not in waits this step; those after it hear so.
-                    if let Some(wait) = world.give_up_on_next() {
-                        transport.publish(Topic::Actions, Message::Action(wait).encode())?;
-                    }
-                    deadline = Instant::now() + step_timeout;
+            } else if gone || Instant::now() >= deadline {
+                // The first agent not in waits this step; those after it hear so.
+                if let Some(wait) = world.give_up_on_next() {
+                    transport.publish(Topic::Actions, Message::Action(wait).encode())?;
                 }
+                deadline = Instant::now() + step_timeout;
             }
         }
         if let Some(end) = world.step() {
@@ -104,8 +145,8 @@ pub fn run_world(
     }
 }
 
-/// Runs `agent` over `transport` until an episode ends (returned), or the world is silent for
-/// `silence` (an error).
+/// Runs `agent` over `transport` until an episode ends (returned), the world is silent for
+/// `silence`, or the transport knows the world gone (errors).
 ///
 /// # Errors
 /// If the transport fails, a message cannot be read, the policy fails, or the world is gone.
@@ -114,10 +155,19 @@ pub fn run_agent<D: Decide>(
     transport: &mut impl Transport,
     silence: Duration,
 ) -> Result<phalanx_msg::End, RunError> {
+    let mut last_heard = Instant::now();
     loop {
-        let Some(bytes) = transport.receive(silence)? else {
-            return Err(RunError::WorldSilent(silence));
+        let left = silence.saturating_sub(last_heard.elapsed());
+        let Some(bytes) = transport.receive(left.min(POLL))? else {
+            if transport.world_gone() {
+                return Err(RunError::WorldGone);
+            }
+            if last_heard.elapsed() >= silence {
+                return Err(RunError::WorldSilent(silence));
+            }
+            continue;
         };
+        last_heard = Instant::now();
         let message = decode(&bytes)?;
         if let Message::End(end) = message {
             agent.end(end.episode);

@@ -23,8 +23,8 @@ pub struct World {
     /// This step's actions so far, by agent.
     actions: Vec<Option<u8>>,
     plan: Plan,
-    /// Actions that did not come in time (the agent waited instead).
-    missed: u64,
+    /// Actions that did not come in time (the agent waited instead), by agent.
+    missed: Vec<u64>,
     /// Actions that came for another step or episode, or twice.
     stale: u64,
     end: Option<End>,
@@ -49,7 +49,7 @@ impl World {
             step: 0,
             actions: vec![None; n],
             plan,
-            missed: 0,
+            missed: vec![0; n],
             stale: 0,
             end: None,
         })
@@ -91,6 +91,11 @@ impl World {
         }
     }
 
+    /// The first agent, in this step's order, whose action is not in; `None` when all are.
+    pub fn next_missing(&self) -> Option<u16> {
+        self.obs.order.iter().find(|&&agent| self.actions[agent].is_none()).map(|&a| a as u16)
+    }
+
     /// Gives up on the first agent, in this step's order, whose action is not in: it waits
     /// this step (counted as missed), and the returned action says so to the agents ranked
     /// after it, who wait for it. `None` when every action is in.
@@ -99,7 +104,7 @@ impl World {
             self.obs.order.iter().enumerate().find(|&(_, &agent)| self.actions[agent].is_none())?;
         let wait = Move::Wait as u8;
         self.actions[agent] = Some(wait);
-        self.missed += 1;
+        self.missed[agent] += 1;
         Some(Action {
             episode: self.episode,
             step: self.step,
@@ -122,9 +127,10 @@ impl World {
         let joint: Vec<u8> = self
             .actions
             .iter()
-            .map(|a| {
+            .zip(&mut self.missed)
+            .map(|(a, missed)| {
                 a.unwrap_or_else(|| {
-                    self.missed += 1;
+                    *missed += 1;
                     Move::Wait as u8
                 })
             })
@@ -151,7 +157,12 @@ impl World {
 
     /// Actions that did not come in time (the agent waited).
     pub fn missed(&self) -> u64 {
-        self.missed
+        self.missed.iter().sum()
+    }
+
+    /// Actions that did not come in time, by agent.
+    pub fn missed_by_agent(&self) -> &[u64] {
+        &self.missed
     }
 
     /// Actions that came for another step, twice, or not allowed.

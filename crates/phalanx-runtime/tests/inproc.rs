@@ -20,23 +20,60 @@ fn config(instance: &Instance) -> EnvConfig {
     EnvConfig { step_limit: Some(3 * instance.grid().side()), ..EnvConfig::default() }
 }
 
-/// An agent's endpoint that checks what the agent publishes: actions, on the actions topic.
-struct Checked(Endpoint);
+/// An agent's endpoint that checks what the agent publishes (actions, on the actions topic)
+/// and drops or delays one of them.
+struct Checked {
+    inner: Endpoint,
+    fault: Fault,
+    delay: Duration,
+}
 
 impl Transport for Checked {
     fn publish(&mut self, topic: Topic, bytes: Vec<u8>) -> Result<(), TransportError> {
         assert_eq!(topic, Topic::Actions, "an agent publishes on the actions topic only");
-        assert!(matches!(decode(&bytes), Ok(Message::Action(_))), "an agent sends actions only");
-        self.0.publish(topic, bytes)
+        let Ok(Message::Action(action)) = decode(&bytes) else {
+            panic!("an agent sends actions only")
+        };
+        if action.step == FAULT_STEP {
+            match self.fault {
+                Fault::None => {}
+                Fault::Dropped => return Ok(()),
+                Fault::Delayed => std::thread::sleep(self.delay),
+            }
+        }
+        self.inner.publish(topic, bytes)
     }
 
     fn receive(&mut self, timeout: Duration) -> Result<Option<Vec<u8>>, TransportError> {
-        self.0.receive(timeout)
+        self.inner.receive(timeout)
     }
 }
 
+/// What happens to agent 1's action of step [`FAULT_STEP`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fault {
+    None,
+    /// Never sent.
+    Dropped,
+    /// Sent after twice the world's step timeout.
+    Delayed,
+}
+
+/// The step whose action [`Fault`] drops or delays.
+const FAULT_STEP: u32 = 2;
+
 /// Runs `instance` with the world and the agents `present` as threads; returns the world.
 fn decentralised(instance: &Instance, present: &[bool], step_timeout: Duration) -> World {
+    decentralised_with(instance, present, step_timeout, Fault::None)
+}
+
+/// [`decentralised`] with agent 1's action of step [`FAULT_STEP`] dropped or delayed.
+fn decentralised_with(
+    instance: &Instance,
+    present: &[bool],
+    step_timeout: Duration,
+    fault: Fault,
+) -> World {
     let n = instance.n_agents();
     let (mut world_end, agent_ends) = bus(n as u16);
     let mut world = World::new(instance, config(instance), 0).unwrap();
@@ -50,7 +87,8 @@ fn decentralised(instance: &Instance, present: &[bool], step_timeout: Duration) 
             let decider = AgentPolicy::new(policy.clone(), id).unwrap();
             scope.spawn(move || {
                 let mut agent = Agent::new(id as u16, decider);
-                let mut end = Checked(end);
+                let fault = if id == 1 { fault } else { Fault::None };
+                let mut end = Checked { inner: end, fault, delay: 2 * step_timeout };
                 run_agent(&mut agent, &mut end, Duration::from_secs(20)).unwrap()
             });
         }
@@ -95,4 +133,29 @@ fn an_agent_that_never_answers_waits_and_the_others_go_on() {
     assert!(plan.path(1).all(|cell| cell == instance.starts()[1]), "agent 1 stayed");
     assert!(plan.path(0).any(|cell| cell != instance.starts()[0]), "agent 0 moved");
     assert!(started.elapsed() < Duration::from_secs(10), "every wait is bounded");
+}
+
+#[test]
+fn a_dropped_or_late_action_costs_one_timeout_and_is_counted() {
+    let instance =
+        generate(&GenConfig { size: 8, density: 0.1, n_agents: 3, seed: 2, fov: 9 }).unwrap();
+    let everyone = [true; 3];
+    let timeout = Duration::from_millis(100);
+    let clean = decentralised(&instance, &everyone, timeout);
+    assert!(clean.plan().n_steps() > FAULT_STEP as usize + 1, "the fault falls inside the episode");
+    for fault in [Fault::Dropped, Fault::Delayed] {
+        let started = std::time::Instant::now();
+        let world = decentralised_with(&instance, &everyone, timeout, fault);
+        assert_eq!(world.missed_by_agent(), [0, 1, 0], "{fault:?}: one action missed");
+        // The late action arrives after the step it was for: counted stale, not taken.
+        let stale = u64::from(fault == Fault::Delayed);
+        assert_eq!(world.stale(), stale, "{fault:?}");
+        let moved = |w: &World| w.plan().path(1).nth(FAULT_STEP as usize + 1);
+        assert_eq!(
+            moved(&world),
+            world.plan().path(1).nth(FAULT_STEP as usize),
+            "{fault:?}: it waited"
+        );
+        assert!(started.elapsed() < Duration::from_secs(10), "{fault:?}: bounded");
+    }
 }

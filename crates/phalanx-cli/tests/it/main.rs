@@ -8,6 +8,8 @@ use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
 mod kill;
+mod motion;
+mod processes;
 mod render;
 mod threads;
 
