@@ -1,16 +1,19 @@
 //! `phalanx motion INSTANCE PLAN --wheelbase L --max-steer DEG --cell C -o TRAJ.csv|.json`:
 //! every agent of a plan driven as a car with Ackermann steering (`phalanx_motion`), a table
 //! (or JSON) of tracking errors and the closest two cars came, and the trajectory written
-//! as CSV or JSON. Exit 1 when the plan is invalid, cannot be driven (a U-turn, a turn too
-//! tight, a step too fast; the message names the agent and the step) or the cars touch; 2
-//! for bad input (docs/motion.md, docs/errors.md).
+//! as CSV or JSON; `--render` draws the cars driving (`phalanx_render::render_cars`). Exit 1
+//! when the plan is invalid, cannot be driven (a U-turn, a turn too tight, a step too fast;
+//! the message names the agent and the step) or the cars touch; 2 for bad input
+//! (docs/motion.md, docs/errors.md).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context as _;
+use phalanx_core::Instance;
 use phalanx_motion::{Car, Motion, MotionConfig, MotionError, Report};
+use phalanx_render::{CarFrame, CarScene, Options, Pose};
 use serde_json::json;
 
 use crate::util;
@@ -56,6 +59,10 @@ pub(crate) struct Args {
     /// Write the trajectory: .csv (one row per car and sample) or .json (report and samples).
     #[arg(short, long, value_name = "FILE")]
     out: Option<PathBuf>,
+    /// Draw the cars driving over the map: .svg or .gif (animated, in real time) or .png
+    /// (halfway through the run).
+    #[arg(long, value_name = "FILE")]
+    render: Option<PathBuf>,
     /// Use only the first N agents (default all).
     #[arg(long, value_name = "N")]
     agents: Option<usize>,
@@ -91,6 +98,7 @@ fn format_of(path: &Path) -> anyhow::Result<Format> {
 
 pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     let format = args.out.as_deref().map(format_of).transpose()?;
+    let picture = args.render.as_deref().map(crate::render::format_of).transpose()?;
     let named = util::read_instance(&args.instance, args.agents)?;
     let plan = phalanx_io::read_plan_for(&args.plan, &named.names).context("reading the plan")?;
     let mut car = Car::new(args.wheelbase, args.max_steer);
@@ -157,6 +165,13 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
             util::print(&format!("wrote {}\n", path.display()))?;
         }
     }
+    if let (Some(path), Some(format)) = (&args.render, picture) {
+        let title = args.plan.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default();
+        draw(path, format, &named.instance, &motion, &title)?;
+        if !args.json {
+            util::print(&format!("wrote {}\n", path.display()))?;
+        }
+    }
     if report.has_contact() {
         util::warn(&format!(
             "{} cannot be driven without contact: {}",
@@ -166,6 +181,45 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::from(util::EXIT_INVALID));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Draws the cars driving, each pose the middle of the wheelbase (the body's centre), and
+/// writes the picture atomically to `path`.
+fn draw(
+    path: &Path,
+    format: phalanx_render::Format,
+    instance: &Instance,
+    motion: &Motion,
+    title: &str,
+) -> anyhow::Result<()> {
+    let car = &motion.report.car;
+    let half = car.wheelbase / 2.0;
+    let frames = motion
+        .samples
+        .chunks(instance.n_agents())
+        .map(|at| CarFrame {
+            t: at[0].t,
+            poses: at
+                .iter()
+                .map(|s| Pose {
+                    x: s.x + half * s.heading.cos(),
+                    y: s.y + half * s.heading.sin(),
+                    heading: s.heading,
+                })
+                .collect(),
+        })
+        .collect();
+    let scene = CarScene {
+        instance,
+        cell: motion.report.cell,
+        length: car.length,
+        width: car.width,
+        frames,
+        title,
+    };
+    let bytes = phalanx_render::render_cars(&scene, &Options::default(), format)
+        .with_context(|| format!("drawing {}", path.display()))?;
+    util::written(phalanx_io::write_bytes(path, &bytes), path)
 }
 
 /// The error's message with the agent's name after its index.

@@ -24,7 +24,12 @@
 //! through a window that follows the team, and an episode longer than
 //! [`Options::max_frames`] steps shows every `k`-th step; the obstacles drawn are those some
 //! window shows. Output is byte-deterministic (see [`svg`]).
+//!
+//! A [`CarScene`] is the continuous counterpart: car bodies (plain [`Pose`]s in metres, as
+//! `phalanx motion` drives a plan) moving over the map, drawn by [`render_cars`] as an
+//! animated SVG or GIF in real time, or a PNG of the frame halfway through.
 
+mod cars;
 pub mod chart;
 mod curves;
 mod font;
@@ -34,6 +39,7 @@ mod svg;
 
 use thiserror::Error;
 
+pub use cars::{CarFrame, CarScene, Pose, car_svg, render_cars};
 pub use curves::{Curve, training_curves};
 pub use raster::GIF_MAX_FRAMES;
 pub use scene::{Crop, Options, Scene};
@@ -82,6 +88,31 @@ pub enum RenderError {
     /// The picture is too large to rasterise.
     #[error("a {0}x{1} picture is too large to rasterise")]
     TooLarge(u32, u32),
+    /// A car scene without frames.
+    #[error("the car scene has no frames")]
+    NoFrames,
+    /// A car scene's frame without one pose per agent.
+    #[error("car frame {frame} has {poses} poses, the instance {agents} agents")]
+    PoseCount {
+        /// The frame.
+        frame: usize,
+        /// Its poses.
+        poses: usize,
+        /// Agents of the instance.
+        agents: usize,
+    },
+    /// A car scene's cell side or body size that is not a positive number.
+    #[error("the {what} {value} m must be a positive number")]
+    CarSize {
+        /// What: the cell side, the body length or width.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A car scene's frame with a number that is not finite or a time before the previous
+    /// frame's.
+    #[error("car frame {0} has a number that is not finite or a time before the previous frame's")]
+    BadFrame(usize),
     /// The rasteriser or an encoder failed (a bug: the SVG is ours).
     #[error("rasterising: {0}")]
     Raster(String),

@@ -27,16 +27,25 @@ fn rgba(
     edges: Edges,
 ) -> Result<(u32, u32, Vec<u8>), RenderError> {
     let (w, h) = svg::size(layout);
-    if w > MAX_PX || h > MAX_PX {
-        return Err(RenderError::TooLarge(w, h));
-    }
+    check_size(w, h)?;
     let text = svg::document(scene, layout, options, Mode::Frame(frame), edges);
-    let tree = usvg::Tree::from_str(&text, &usvg::Options::default())
+    Ok((w, h, draw(&text, w, h)?))
+}
+
+/// Refuses a picture too large to rasterise.
+pub(crate) fn check_size(w: u32, h: u32) -> Result<(), RenderError> {
+    if w > MAX_PX || h > MAX_PX { Err(RenderError::TooLarge(w, h)) } else { Ok(()) }
+}
+
+/// The RGBA pixels of the SVG document `text` of `w × h` pixels on an opaque background.
+pub(crate) fn draw(text: &str, w: u32, h: u32) -> Result<Vec<u8>, RenderError> {
+    check_size(w, h)?;
+    let tree = usvg::Tree::from_str(text, &usvg::Options::default())
         .map_err(|err| RenderError::Raster(err.to_string()))?;
     let mut pixmap = Pixmap::new(w, h).ok_or(RenderError::TooLarge(w, h))?;
     resvg::render(&tree, Transform::identity(), &mut pixmap.as_mut());
     // The background is opaque, so the premultiplied pixels are the plain ones.
-    Ok((w, h, pixmap.take()))
+    Ok(pixmap.take())
 }
 
 /// The RGBA pixels of step `step` (frame `step` of a layout of every step): width, height and
@@ -58,13 +67,18 @@ pub(crate) fn png(
     step: usize,
 ) -> Result<Vec<u8>, RenderError> {
     let (w, h, data) = still_rgba(scene, layout, options, step)?;
+    encode_png(w, h, &data)
+}
+
+/// The PNG of `w × h` RGBA pixels.
+pub(crate) fn encode_png(w: u32, h: u32, data: &[u8]) -> Result<Vec<u8>, RenderError> {
     let mut out = Vec::new();
     let mut encoder = png::Encoder::new(&mut out, w, h);
     encoder.set_color(png::ColorType::Rgba);
     encoder.set_depth(png::BitDepth::Eight);
     let raster = |err: png::EncodingError| RenderError::Raster(err.to_string());
     let mut writer = encoder.write_header().map_err(raster)?;
-    writer.write_image_data(&data).map_err(raster)?;
+    writer.write_image_data(data).map_err(raster)?;
     writer.finish().map_err(raster)?;
     Ok(out)
 }
@@ -77,6 +91,29 @@ pub(crate) fn gif(
     only: Option<usize>,
 ) -> Result<Vec<u8>, RenderError> {
     let (w, h) = svg::size(layout);
+    let frames: Vec<usize> = match only {
+        Some(i) => vec![i],
+        None => (0..layout.frames.len()).collect(),
+    };
+    let delay = (100.0 / options.fps).round().clamp(1.0, 65535.0) as u16;
+    let hold = (options.hold_s * 100.0).round().clamp(0.0, 65535.0) as u16;
+    let mut delays = vec![delay; frames.len()];
+    if let Some(last) = delays.last_mut() {
+        *last = delay.saturating_add(hold);
+    }
+    encode_gif(w, h, &delays, |k| {
+        rgba(scene, layout, options, frames[k], Edges::Crisp).map(|(_, _, data)| data)
+    })
+}
+
+/// A looping GIF of `delays.len()` frames of `w × h` pixels, frame `k` drawn by `frame(k)`
+/// (RGBA) and shown for `delays[k]` hundredths of a second.
+pub(crate) fn encode_gif(
+    w: u32,
+    h: u32,
+    delays: &[u16],
+    mut frame: impl FnMut(usize) -> Result<Vec<u8>, RenderError>,
+) -> Result<Vec<u8>, RenderError> {
     let (gw, gh) = (
         u16::try_from(w).map_err(|_| RenderError::TooLarge(w, h))?,
         u16::try_from(h).map_err(|_| RenderError::TooLarge(w, h))?,
@@ -86,18 +123,12 @@ pub(crate) fn gif(
     {
         let mut encoder = gif::Encoder::new(&mut out, gw, gh, &[]).map_err(raster)?;
         encoder.set_repeat(gif::Repeat::Infinite).map_err(raster)?;
-        let frames: Vec<usize> = match only {
-            Some(i) => vec![i],
-            None => (0..layout.frames.len()).collect(),
-        };
-        let delay = (100.0 / options.fps).round().clamp(1.0, 65535.0) as u16;
-        let hold = (options.hold_s * 100.0).round().clamp(0.0, 65535.0) as u16;
-        for (k, &i) in frames.iter().enumerate() {
-            let (_, _, mut data) = rgba(scene, layout, options, i, Edges::Crisp)?;
-            let mut frame = palette_frame(gw, gh, &data)
+        for (k, &delay) in delays.iter().enumerate() {
+            let mut data = frame(k)?;
+            let mut image = palette_frame(gw, gh, &data)
                 .unwrap_or_else(|| gif::Frame::from_rgba_speed(gw, gh, &mut data, 10));
-            frame.delay = if k + 1 == frames.len() { delay.saturating_add(hold) } else { delay };
-            encoder.write_frame(&frame).map_err(raster)?;
+            image.delay = delay;
+            encoder.write_frame(&image).map_err(raster)?;
         }
     }
     Ok(out)

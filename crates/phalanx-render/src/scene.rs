@@ -2,7 +2,7 @@
 //! fix before any element is written ([`Layout`]): the frames shown, the window of the map
 //! each frame shows, the aligned target formation and `L_f` at every frame.
 
-use phalanx_core::{Cell, Instance, Plan, formation_fit, formation_loss};
+use phalanx_core::{Cell, Grid, Instance, Plan, formation_fit, formation_loss};
 
 use crate::RenderError;
 
@@ -106,7 +106,7 @@ pub(crate) struct Layout {
 }
 
 /// Pixels the map view aims at along its longer side.
-const VIEW_PX: f64 = 480.0;
+pub(crate) const VIEW_PX: f64 = 480.0;
 
 impl Layout {
     /// The layout of `scene` under `options`, showing `max_frames` frames at most.
@@ -154,6 +154,11 @@ fn check(scene: &Scene<'_>, options: &Options) -> Result<(), RenderError> {
     if !(options.fps.is_finite() && options.fps > 0.0) {
         return Err(RenderError::Fps(options.fps));
     }
+    check_options(options)
+}
+
+/// Refuses a hold or an id prefix that cannot be drawn (every kind of picture).
+pub(crate) fn check_options(options: &Options) -> Result<(), RenderError> {
     if !(options.hold_s.is_finite() && options.hold_s >= 0.0) {
         return Err(RenderError::Hold(options.hold_s));
     }
@@ -166,24 +171,40 @@ fn check(scene: &Scene<'_>, options: &Options) -> Result<(), RenderError> {
 /// The window of every frame.
 fn windows(scene: &Scene<'_>, options: &Options, frames: &[usize]) -> Vec<Window> {
     let grid = scene.instance.grid();
-    let (gw, gh) = (f64::from(grid.width()), f64::from(grid.height()));
-    let follow = match options.crop {
-        Crop::Full => false,
-        Crop::Follow => true,
-        Crop::Auto => grid.width().max(grid.height()) > AUTO_CROP_SIDE,
-    };
-    if !follow {
-        return vec![Window { x: 0.0, y: 0.0, w: gw, h: gh }; frames.len()];
+    if !follows(grid, options.crop) {
+        return vec![whole(grid); frames.len()];
     }
     let boxes: Vec<(f64, f64, f64, f64)> =
         frames.iter().map(|&t| bounding_box(scene.plan.at(t))).collect();
-    let extent = boxes.iter().map(|b| (b.2 - b.0).max(b.3 - b.1)).fold(0.0, f64::max) + 1.0;
     let margin = f64::from(options.fov.unwrap_or(0) / 2 + FOLLOW_MARGIN);
+    following(grid, &boxes, margin)
+}
+
+/// Whether `crop` shows `grid` through a window that follows the team.
+pub(crate) fn follows(grid: &Grid, crop: Crop) -> bool {
+    match crop {
+        Crop::Full => false,
+        Crop::Follow => true,
+        Crop::Auto => grid.width().max(grid.height()) > AUTO_CROP_SIDE,
+    }
+}
+
+/// The window of the whole of `grid`.
+pub(crate) fn whole(grid: &Grid) -> Window {
+    Window { x: 0.0, y: 0.0, w: f64::from(grid.width()), h: f64::from(grid.height()) }
+}
+
+/// The windows of [`Crop::Follow`] over `grid`, one per frame, from the team's bounding box
+/// at each frame (`(min x, min y, max x, max y)` of the top-left corners of unit squares, as
+/// cells are) and the margin in cells kept around the team.
+pub(crate) fn following(grid: &Grid, boxes: &[(f64, f64, f64, f64)], margin: f64) -> Vec<Window> {
+    let (gw, gh) = (f64::from(grid.width()), f64::from(grid.height()));
+    let extent = boxes.iter().map(|b| (b.2 - b.0).max(b.3 - b.1)).fold(0.0, f64::max) + 1.0;
     let side = (extent + 2.0 * margin).clamp(f64::from(MIN_WINDOW), f64::from(MAX_WINDOW));
     let (w, h) = (side.min(gw), side.min(gh));
     let centres: Vec<(f64, f64)> =
         boxes.iter().map(|b| ((b.0 + b.2 + 1.0) / 2.0, (b.1 + b.3 + 1.0) / 2.0)).collect();
-    (0..frames.len())
+    (0..boxes.len())
         .map(|i| {
             let (lo, hi) = (i.saturating_sub(4), (i + 5).min(centres.len()));
             let n = (hi - lo) as f64;

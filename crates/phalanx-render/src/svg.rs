@@ -4,11 +4,11 @@
 //!
 //! Output is byte-deterministic: attributes are written in alphabetical order, numbers with
 //! at most two decimals ([`num`]), elements in a fixed order (grid, obstacles, goals, trails,
-//! ghosts, agents; then the footer).
+//! ghosts, agents; then the footer). The car scenes (`cars.rs`) use the same writer.
 
 use std::fmt::Write as _;
 
-use phalanx_core::Grid;
+use phalanx_core::{Cell, Grid};
 
 use crate::font;
 use crate::scene::{Layout, Options, Scene};
@@ -34,17 +34,17 @@ const FREE: &str = "#f4f4f1";
 /// Grid lines.
 const LINES: &str = "#dcdcd6";
 /// Text and the `L_f` trace.
-const INK: &str = "#202020";
+pub(crate) const INK: &str = "#202020";
 const TRACE: &str = "#b3261e";
 
 /// Pixels above the map (the title line).
-const TOP: f64 = 22.0;
+pub(crate) const TOP: f64 = 22.0;
 /// Pixels of the footer below the map: the counter line, the `L_f` trace and the legend.
 const FOOTER: f64 = 86.0;
 /// Smallest picture width, so that the footer fits.
-const MIN_WIDTH: f64 = 320.0;
+pub(crate) const MIN_WIDTH: f64 = 320.0;
 /// Pixels per font unit.
-const FONT: f64 = 2.0;
+pub(crate) const FONT: f64 = 2.0;
 
 /// One frame or the whole animation.
 #[derive(Debug, Clone, Copy)]
@@ -69,7 +69,7 @@ pub(crate) fn size(layout: &Layout) -> (u32, u32) {
     (w.max(MIN_WIDTH) as u32, (TOP + h + FOOTER) as u32)
 }
 
-fn view_px(layout: &Layout) -> (f64, f64) {
+pub(crate) fn view_px(layout: &Layout) -> (f64, f64) {
     let win = layout.windows[0];
     (win.w * layout.cell_px, win.h * layout.cell_px)
 }
@@ -87,12 +87,7 @@ pub(crate) fn document(
     let mut w = Writer { out: String::new(), mode, frames: layout.frames.len(), prefix };
     let (width, height) = size(layout);
     let (vw, vh) = view_px(layout);
-    let crisp = if edges == Edges::Crisp { " shape-rendering=\"crispEdges\"" } else { "" };
-    let _ = writeln!(
-        w.out,
-        "<svg height=\"{height}\"{crisp} viewBox=\"0 0 {width} {height}\" width=\"{width}\" \
-         xmlns=\"http://www.w3.org/2000/svg\">"
-    );
+    open_svg(&mut w.out, width, height, edges);
     let counters: Vec<String> = layout.frames.iter().map(|&t| counter(layout, t)).collect();
     let mut texts: Vec<&str> = vec![scene.title, "LF", "PATH FINDING", "FORMATION"];
     texts.extend(counters.iter().map(String::as_str));
@@ -115,20 +110,43 @@ pub(crate) fn document(
     w.open("g", &mut vec![], &[Track::Translate(&shifts)]);
     w.out.push('\n');
     map(&mut w, scene.instance.grid(), layout);
-    goals(&mut w, scene);
+    goals(&mut w, scene.instance.goals());
     trails(&mut w, scene, layout);
     ghosts(&mut w, layout);
     agents(&mut w, scene, layout, fov, &labels);
     w.out.push_str("</g>\n</g>\n");
-    let width_f = f64::from(width);
+    covers(&mut w.out, (width, height), (vw, vh));
+    let pen = w.pen(6.0, 6.0, FONT, INK);
+    font::line(&mut w.out, scene.title, &pen);
+    w.out.push('\n');
+    footer(&mut w, scene, layout, &counters, width, TOP + vh);
+    w.out.push_str("</svg>\n");
+    w.out
+}
+
+/// Opens the document: `<svg>` of `width × height` pixels.
+pub(crate) fn open_svg(out: &mut String, width: u32, height: u32, edges: Edges) {
+    let crisp = if edges == Edges::Crisp { " shape-rendering=\"crispEdges\"" } else { "" };
+    let _ = writeln!(
+        out,
+        "<svg height=\"{height}\"{crisp} viewBox=\"0 0 {width} {height}\" width=\"{width}\" \
+         xmlns=\"http://www.w3.org/2000/svg\">"
+    );
+}
+
+/// White rectangles over everything outside the map view of `view` pixels below the title
+/// bar: the title bar, the footer and the margin on the right of a picture of `size` pixels.
+pub(crate) fn covers(out: &mut String, size: (u32, u32), view: (f64, f64)) {
+    let (width, height) = (f64::from(size.0), f64::from(size.1));
+    let (vw, vh) = view;
     for (x, y, rw, rh) in [
-        (0.0, 0.0, width_f, TOP),
-        (0.0, TOP + vh, width_f, f64::from(height) - TOP - vh),
-        (vw, TOP, width_f - vw, vh),
+        (0.0, 0.0, width, TOP),
+        (0.0, TOP + vh, width, height - TOP - vh),
+        (vw, TOP, width - vw, vh),
     ] {
         if rw > 0.0 && rh > 0.0 {
             let _ = writeln!(
-                w.out,
+                out,
                 "<rect fill=\"#ffffff\" height=\"{}\" width=\"{}\" x=\"{}\" y=\"{}\"/>",
                 num(rh),
                 num(rw),
@@ -137,12 +155,6 @@ pub(crate) fn document(
             );
         }
     }
-    let pen = w.pen(6.0, 6.0, FONT, INK);
-    font::line(&mut w.out, scene.title, &pen);
-    w.out.push('\n');
-    footer(&mut w, scene, layout, &counters, width, TOP + vh);
-    w.out.push_str("</svg>\n");
-    w.out
 }
 
 /// The counter line of step `t`.
@@ -152,37 +164,49 @@ fn counter(layout: &Layout, t: usize) -> String {
 }
 
 /// An attribute that changes with the frame.
-enum Track<'a> {
+pub(crate) enum Track<'a> {
     /// `transform="translate(x y)"`, interpolated linearly between frames.
     Translate(&'a [(f64, f64)]),
+    /// `transform="rotate(a)"` (degrees, unwrapped by the caller), interpolated linearly.
+    Rotate(&'a [f64]),
     /// Any attribute, one value per frame, changing at frame boundaries.
     Discrete(&'static str, &'a [String]),
     /// A number, interpolated linearly.
     Linear(&'static str, &'a [f64]),
 }
 
-struct Writer<'a> {
-    out: String,
-    mode: Mode,
-    frames: usize,
+pub(crate) struct Writer<'a> {
+    pub(crate) out: String,
+    pub(crate) mode: Mode,
+    pub(crate) frames: usize,
     /// Prefix of every id.
-    prefix: &'a str,
+    pub(crate) prefix: &'a str,
 }
 
 impl<'a> Writer<'a> {
     /// A pen for a line of text.
-    fn pen(&self, x: f64, y: f64, scale: f64, fill: &'a str) -> font::Pen<'a> {
+    pub(crate) fn pen(&self, x: f64, y: f64, scale: f64, fill: &'a str) -> font::Pen<'a> {
         font::Pen { prefix: self.prefix, x, y, scale, fill }
     }
 
     /// Opens `<tag ...>` with the fixed `attrs` and the tracks' values of the mode (their
     /// first values when animated), attributes sorted by name, then the animation children.
-    fn open(&mut self, tag: &str, attrs: &mut Vec<(&'static str, String)>, tracks: &[Track<'_>]) {
+    pub(crate) fn open(
+        &mut self,
+        tag: &str,
+        attrs: &mut Vec<(&'static str, String)>,
+        tracks: &[Track<'_>],
+    ) {
         self.element(tag, attrs, tracks, false);
     }
 
     /// [`Writer::open`] closed at once (`<tag .../>`, or with its animation children).
-    fn leaf(&mut self, tag: &str, attrs: &mut Vec<(&'static str, String)>, tracks: &[Track<'_>]) {
+    pub(crate) fn leaf(
+        &mut self,
+        tag: &str,
+        attrs: &mut Vec<(&'static str, String)>,
+        tracks: &[Track<'_>],
+    ) {
         self.element(tag, attrs, tracks, true);
     }
 
@@ -202,6 +226,7 @@ impl<'a> Writer<'a> {
                 Track::Translate(v) => {
                     ("transform", format!("translate({} {})", num(v[at].0), num(v[at].1)))
                 }
+                Track::Rotate(v) => ("transform", format!("rotate({})", num(v[at]))),
                 Track::Discrete(name, v) => (name, v[at].clone()),
                 Track::Linear(name, v) => (name, num(v[at])),
             });
@@ -238,6 +263,9 @@ impl<'a> Writer<'a> {
                     v.iter().map(|p| format!("{} {}", num(p.0), num(p.1))).collect(),
                     true,
                 ),
+                Track::Rotate(v) => {
+                    ("animateTransform", "transform", v.iter().map(|&a| num(a)).collect(), true)
+                }
                 Track::Discrete(name, v) => ("animate", name, v.to_vec(), false),
                 Track::Linear(name, v) => {
                     ("animate", name, v.iter().map(|&x| num(x)).collect(), true)
@@ -254,10 +282,11 @@ impl<'a> Writer<'a> {
                 joined.push(';');
                 joined.push_str(values.last().expect("a value per frame"));
             }
-            let (mode, extra) = if linear {
-                ("linear", if kind == "animateTransform" { " type=\"translate\"" } else { "" })
-            } else {
-                ("discrete", "")
+            let (mode, extra) = match track {
+                Track::Translate(_) => ("linear", " type=\"translate\""),
+                Track::Rotate(_) => ("linear", " type=\"rotate\""),
+                Track::Linear(..) => ("linear", ""),
+                Track::Discrete(..) => ("discrete", ""),
             };
             let _ = write!(
                 out,
@@ -267,6 +296,7 @@ impl<'a> Writer<'a> {
         }
         debug_assert!(tracks.iter().all(|t| match t {
             Track::Translate(v) => v.len() == self.frames,
+            Track::Rotate(v) => v.len() == self.frames,
             Track::Discrete(_, v) => v.len() == self.frames,
             Track::Linear(_, v) => v.len() == self.frames,
         }));
@@ -274,7 +304,7 @@ impl<'a> Writer<'a> {
     }
 
     /// Whether frame `i` is drawn: in a still only its own frame, animated every frame.
-    fn shows(&self, i: usize) -> bool {
+    pub(crate) fn shows(&self, i: usize) -> bool {
         match self.mode {
             Mode::Frame(at) => at == i,
             Mode::Animate { .. } => true,
@@ -282,7 +312,7 @@ impl<'a> Writer<'a> {
     }
 
     /// `<g>` visible during frame `i` only (a still draws only its frame's group).
-    fn open_frame_group(&mut self, i: usize) {
+    pub(crate) fn open_frame_group(&mut self, i: usize) {
         match self.mode {
             Mode::Frame(_) => self.out.push_str("<g>"),
             Mode::Animate { slots, fps } => {
@@ -321,7 +351,7 @@ fn key(v: f64) -> String {
 
 /// The cells any frame's window shows: the free background, the grid lines when cells are
 /// large enough and the obstacles as one path of horizontal runs.
-fn map(w: &mut Writer<'_>, grid: &Grid, layout: &Layout) {
+pub(crate) fn map(w: &mut Writer<'_>, grid: &Grid, layout: &Layout) {
     let shown = match w.mode {
         Mode::Frame(i) => std::slice::from_ref(&layout.windows[i]),
         Mode::Animate { .. } => &layout.windows[..],
@@ -371,12 +401,12 @@ fn map(w: &mut Writer<'_>, grid: &Grid, layout: &Layout) {
         let Some((a, b)) = *row else { continue };
         let mut x = a;
         while x < b {
-            if !grid.is_blocked(phalanx_core::Cell::new(x as i32, y as i32)) {
+            if !grid.is_blocked(Cell::new(x as i32, y as i32)) {
                 x += 1;
                 continue;
             }
             let start = x;
-            while x < b && grid.is_blocked(phalanx_core::Cell::new(x as i32, y as i32)) {
+            while x < b && grid.is_blocked(Cell::new(x as i32, y as i32)) {
                 x += 1;
             }
             let _ = write!(d, "M{start} {y}h{}v1h-{}z", x - start, x - start);
@@ -387,13 +417,13 @@ fn map(w: &mut Writer<'_>, grid: &Grid, layout: &Layout) {
     }
 }
 
-fn colour(agent: usize) -> &'static str {
+pub(crate) fn colour(agent: usize) -> &'static str {
     AGENT_COLOURS[agent % AGENT_COLOURS.len()]
 }
 
 /// Goals: a square outline in the agent's colour.
-fn goals(w: &mut Writer<'_>, scene: &Scene<'_>) {
-    for (i, g) in scene.instance.goals().iter().enumerate() {
+pub(crate) fn goals(w: &mut Writer<'_>, goals: &[Cell]) {
+    for (i, g) in goals.iter().enumerate() {
         let _ = writeln!(
             w.out,
             "<rect fill=\"none\" height=\"0.8\" stroke=\"{}\" stroke-width=\"0.12\" width=\"0.8\" \
@@ -410,7 +440,7 @@ fn trails(w: &mut Writer<'_>, scene: &Scene<'_>, layout: &Layout) {
     let plan = scene.plan;
     let last = *layout.frames.last().expect("at least one frame");
     for agent in 0..plan.n_agents() {
-        let mut points: Vec<phalanx_core::Cell> = Vec::new();
+        let mut points: Vec<Cell> = Vec::new();
         // Length walked up to each step.
         let mut walked = Vec::with_capacity(last + 1);
         for cell in plan.path(agent).take(last + 1) {

@@ -82,7 +82,7 @@ fn loopback_bytes() -> u64 {
 
 fn world(n_agents: usize, steps: u32) -> World {
     let instance =
-        generate(&GenConfig { size: 64, density: 0.1, n_agents, seed: 1, fov: 9 }).unwrap();
+        generate(&GenConfig { size: 192, density: 0.1, n_agents, seed: 1, fov: 9 }).unwrap();
     let config = EnvConfig { step_limit: Some(steps), ..EnvConfig::default() };
     World::new(&instance, config, 0).unwrap()
 }
@@ -154,7 +154,11 @@ fn main() {
         let per =
             |bytes: u64, times: &[Duration]| bytes / (u64::from(n) * times.len().max(1) as u64);
         assert_eq!(local_payload, zenoh_payload, "the same messages either way");
-        assert!(zenoh.len() + 1 >= steps as usize && local.len() + 1 >= steps as usize);
+        assert_eq!(
+            (zenoh.len(), local.len()),
+            (steps as usize - 1, steps as usize - 1),
+            "whole episodes"
+        );
         println!(
             "{n} agents: in-process {:?} / {:?}; zenoh {:?} / {:?}; payload {} B, loopback {} B",
             percentile(&local, 0.5),

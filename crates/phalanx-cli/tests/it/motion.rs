@@ -1,6 +1,6 @@
 //! `phalanx motion`: a generated instance solved by CBS and driven by car-like robots, its
 //! table, JSON, CSV and JSON trajectories; bad settings exit 2, a plan a car cannot drive
-//! exits 1 naming the agent and the step.
+//! exits 1 naming the agent and the step; `--render` draws the cars.
 
 use super::{check, phalanx};
 
@@ -56,6 +56,32 @@ fn motion_drives_a_solved_plan_and_writes_the_trajectory() {
     for key in ["t", "agent", "x", "y", "heading", "speed", "steer"] {
         assert!(samples[0].get(key).is_some(), "{key} in {}", samples[0]);
     }
+}
+
+#[test]
+fn motion_renders_the_cars_driving() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = ["gen", "--size", "12", "--density", "0.1", "--agents", "2", "--seed", "3"];
+    check(&phalanx(d, &[&args[..], &["-o", "inst.yaml"]].concat()), 0);
+    check(&phalanx(d, &["solve", "inst.yaml", "--planner", "cbs", "-o", "plan.yaml"]), 0);
+    let car = ["--wheelbase", "0.25", "--max-steer", "30", "--cell", "1", "--rate", "4"];
+    let motion = |extra: &[&str]| {
+        phalanx(d, &[&["motion", "inst.yaml", "plan.yaml"], &car[..], extra].concat())
+    };
+    for name in ["cars.svg", "cars.gif"] {
+        let (out, _) = check(&motion(&["--render", name]), 0);
+        assert!(out.contains(&format!("wrote {name}")), "{out}");
+        let bytes = std::fs::read(d.join(name)).unwrap();
+        assert!(!bytes.is_empty(), "{name} is empty");
+    }
+    let svg = std::fs::read_to_string(d.join("cars.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("type=\"translate\""), "{svg:.300}");
+    assert_eq!(svg.matches("<g transform=\"scale(0.01)\"><rect").count(), 2, "a body per car");
+    assert_eq!(&std::fs::read(d.join("cars.gif")).unwrap()[..6], b"GIF89a");
+    let (_, err) = check(&motion(&["--render", "cars.txt"]), 2);
+    assert!(err.contains("cars.txt"), "{err}");
+    assert!(!d.join("cars.txt").exists(), "nothing written");
 }
 
 const INSTANCE: &str = "\
