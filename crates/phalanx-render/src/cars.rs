@@ -249,23 +249,10 @@ fn document(
     let mut w = Writer { out: String::new(), mode, frames: layout.shown.len(), prefix };
     let (width, height) = layout.size();
     let (vw, vh) = svg::view_px(&layout.grid);
-    svg::open_svg(&mut w.out, width, height, edges);
     let clocks: Vec<String> = layout.shown.iter().map(|&f| clock(scene, f)).collect();
     let mut texts: Vec<&str> = vec![scene.title];
     texts.extend(clocks.iter().map(String::as_str));
-    w.out.push_str("<defs>\n");
-    font::defs(&mut w.out, &texts, prefix);
-    w.out.push_str("</defs>\n");
-    let _ = writeln!(w.out, "<rect fill=\"#ffffff\" height=\"{height}\" width=\"{width}\"/>");
-    let _ = writeln!(
-        w.out,
-        "<g transform=\"translate(0 {}) scale({})\">",
-        num(svg::TOP),
-        num(layout.grid.cell_px)
-    );
-    let shifts: Vec<(f64, f64)> = layout.grid.windows.iter().map(|win| (-win.x, -win.y)).collect();
-    w.open("g", &mut vec![], &[Track::Translate(&shifts)]);
-    w.out.push('\n');
+    svg::open_view(&mut w, (width, height), edges, &texts, &layout.grid);
     svg::map(&mut w, scene.instance.grid(), &layout.grid);
     svg::goals(&mut w, scene.instance.goals());
     trails(&mut w, scene, layout);

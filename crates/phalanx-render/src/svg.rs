@@ -87,28 +87,12 @@ pub(crate) fn document(
     let mut w = Writer { out: String::new(), mode, frames: layout.frames.len(), prefix };
     let (width, height) = size(layout);
     let (vw, vh) = view_px(layout);
-    open_svg(&mut w.out, width, height, edges);
     let counters: Vec<String> = layout.frames.iter().map(|&t| counter(layout, t)).collect();
     let mut texts: Vec<&str> = vec![scene.title, "LF", "PATH FINDING", "FORMATION"];
     texts.extend(counters.iter().map(String::as_str));
     let labels: Vec<String> = (0..scene.plan.n_agents()).map(|i| i.to_string()).collect();
     texts.extend(labels.iter().map(String::as_str));
-    w.out.push_str("<defs>\n");
-    font::defs(&mut w.out, &texts, prefix);
-    w.out.push_str("</defs>\n");
-    let _ = writeln!(w.out, "<rect fill=\"#ffffff\" height=\"{height}\" width=\"{width}\"/>");
-    // The map view: drawn first and then covered outside the view by the title bar, the
-    // footer and the margin on the right (no clip path: a clip or a group opacity makes the
-    // rasteriser draw a layer the size of the picture, several times slower).
-    let _ = writeln!(
-        w.out,
-        "<g transform=\"translate(0 {}) scale({})\">",
-        num(TOP),
-        num(layout.cell_px)
-    );
-    let shifts: Vec<(f64, f64)> = layout.windows.iter().map(|win| (-win.x, -win.y)).collect();
-    w.open("g", &mut vec![], &[Track::Translate(&shifts)]);
-    w.out.push('\n');
+    open_view(&mut w, (width, height), edges, &texts, layout);
     map(&mut w, scene.instance.grid(), layout);
     goals(&mut w, scene.instance.goals());
     trails(&mut w, scene, layout);
@@ -122,6 +106,35 @@ pub(crate) fn document(
     footer(&mut w, scene, layout, &counters, width, TOP + vh);
     w.out.push_str("</svg>\n");
     w.out
+}
+
+/// Opens a document `size` wide and high whose font draws `texts`, on a white background,
+/// and in it the map view of `layout`: scaled to its cell size and shifted frame by frame to
+/// its windows. The map and what stands on it go in next; `</g>\n</g>\n` closes the view,
+/// which is drawn first and then covered outside the view by the title bar, the footer and
+/// the margin on the right (no clip path: a clip or a group opacity makes the rasteriser
+/// draw a layer the size of the picture, several times slower).
+pub(crate) fn open_view(
+    w: &mut Writer<'_>,
+    (width, height): (u32, u32),
+    edges: Edges,
+    texts: &[&str],
+    layout: &Layout,
+) {
+    open_svg(&mut w.out, width, height, edges);
+    w.out.push_str("<defs>\n");
+    font::defs(&mut w.out, texts, w.prefix);
+    w.out.push_str("</defs>\n");
+    let _ = writeln!(w.out, "<rect fill=\"#ffffff\" height=\"{height}\" width=\"{width}\"/>");
+    let _ = writeln!(
+        w.out,
+        "<g transform=\"translate(0 {}) scale({})\">",
+        num(TOP),
+        num(layout.cell_px)
+    );
+    let shifts: Vec<(f64, f64)> = layout.windows.iter().map(|win| (-win.x, -win.y)).collect();
+    w.open("g", &mut vec![], &[Track::Translate(&shifts)]);
+    w.out.push('\n');
 }
 
 /// Opens the document: `<svg>` of `width × height` pixels.

@@ -1,5 +1,7 @@
 //! The pictures: golden files on a tiny instance, byte determinism, what a still shows, the
-//! errors, and the size of a large episode's files.
+//! errors, and the size of a large episode's files; car scenes in `cars`.
+
+mod cars;
 
 use phalanx_core::{Cell, Grid, Instance, Plan};
 use phalanx_render::{Crop, Format, Options, RenderError, Scene, render};
@@ -30,9 +32,9 @@ fn golden_animation_and_still() {
     let scene = scene(&inst, &plan, Some(&CHOICES));
     let options = Options { fps: 4.0, ..Options::default() };
     let svg = String::from_utf8(render(&scene, &options, Format::Svg, None).unwrap()).unwrap();
-    expect_test::expect_file!["golden/tiny.svg"].assert_eq(&svg);
+    expect_test::expect_file!["../golden/tiny.svg"].assert_eq(&svg);
     let still = String::from_utf8(render(&scene, &options, Format::Svg, Some(2)).unwrap()).unwrap();
-    expect_test::expect_file!["golden/tiny-step2.svg"].assert_eq(&still);
+    expect_test::expect_file!["../golden/tiny-step2.svg"].assert_eq(&still);
 }
 
 #[test]
@@ -64,7 +66,7 @@ fn output_is_byte_deterministic() {
 }
 
 /// The RGB of pixel `(x, y)` of a PNG.
-fn pixel(png: &[u8], x: u32, y: u32) -> [u8; 3] {
+pub(crate) fn pixel(png: &[u8], x: u32, y: u32) -> [u8; 3] {
     let decoder = png::Decoder::new(std::io::Cursor::new(png));
     let mut reader = decoder.read_info().unwrap();
     let mut buf = vec![0; reader.output_buffer_size().unwrap()];

@@ -5,6 +5,8 @@
 use phalanx_core::{Cell, Grid, Instance};
 use phalanx_render::{CarFrame, CarScene, Format, Options, Pose, RenderError, render_cars};
 
+use crate::pixel;
+
 /// A 6×4 map with one obstacle and two agents.
 fn instance() -> Instance {
     let grid = Grid::from_fn(6, 4, |c| c == Cell::new(3, 0));
@@ -98,16 +100,6 @@ fn a_long_run_is_subsampled_evenly_keeping_both_ends() {
     let slots = 600 + (1.5_f64 * 599.0 / 100.0).round() as usize;
     let dur = format!("dur=\"{:.2}", slots as f64 * 100.0 / 599.0);
     assert!(svg.contains(dur.trim_end_matches('0')), "{dur} in {:.2000}", svg);
-}
-
-/// The RGB of pixel `(x, y)` of a PNG.
-fn pixel(png: &[u8], x: u32, y: u32) -> [u8; 3] {
-    let decoder = png::Decoder::new(std::io::Cursor::new(png));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    let at = ((y * info.width + x) * 4) as usize;
-    [buf[at], buf[at + 1], buf[at + 2]]
 }
 
 #[test]
