@@ -76,7 +76,7 @@ impl AgentPolicy {
 
     /// The greedy action for this step's observation (`grid` `[C, F, F]`, `vector`, `mask`)
     /// after the agents of `earlier` (`(agent, action)`, those ranked before it) chose theirs.
-    /// Advances the recurrent state.
+    /// Advances the recurrent state: [`AgentPolicy::observe`], then [`AgentPolicy::choose`].
     ///
     /// # Errors
     /// Inputs of other sizes than the network's, a message outside its slots or actions, a
@@ -88,26 +88,29 @@ impl AgentPolicy {
         mask: &[bool],
         earlier: &[(usize, u8)],
     ) -> Result<u8, AgentError> {
+        // Every input is checked before the recurrent state moves.
+        self.check_mask(mask)?;
+        let message = self.message(earlier)?;
+        let features = self.observe(grid, vector)?;
+        Ok(self.head(&features, mask, message))
+    }
+
+    /// This step's recurrent pass on the agent's observation (`grid` `[C, F, F]`, `vector`):
+    /// advances the recurrent state and returns what the head reads. Apart from
+    /// [`AgentPolicy::choose`] so that a policy's state can follow every step of an episode
+    /// while another policy acts (the hierarchy's low level, docs/hierarchy.md).
+    ///
+    /// # Errors
+    /// Inputs of other sizes than the network's.
+    pub fn observe(&mut self, grid: &[f32], vector: &[f32]) -> Result<Features, AgentError> {
         let cfg = self.policy.config().clone();
         let grid_len = cfg.channels * cfg.fov * cfg.fov;
-        for (what, found, expected) in [
-            ("grid", grid.len(), grid_len),
-            ("vector", vector.len(), cfg.env_vec),
-            ("mask", mask.len(), cfg.n_actions),
-        ] {
+        for (what, found, expected) in
+            [("grid", grid.len(), grid_len), ("vector", vector.len(), cfg.env_vec)]
+        {
             if found != expected {
                 return Err(AgentError::Size { what, found, expected });
             }
-        }
-        if !mask.contains(&true) {
-            return Err(AgentError::NoAction);
-        }
-        let mut message = vec![0.0_f32; cfg.message_dim()];
-        for &(agent, action) in earlier {
-            if agent >= cfg.n_agents_max || usize::from(action) >= cfg.n_actions {
-                return Err(AgentError::Message { agent, action });
-            }
-            message[agent * cfg.n_actions + usize::from(action)] = 1.0;
         }
         let mut vec = vec![0.0_f32; cfg.vec_dim()];
         vec[..cfg.env_vec].copy_from_slice(vector);
@@ -118,9 +121,62 @@ impl AgentPolicy {
             &device,
         );
         let vec = tensor3(vec, [1, 1, cfg.vec_dim()], &device);
-        let features = self.policy.recurrent_rows(grid, vec);
-        let message = tensor3(message, [1, 1, cfg.message_dim()], &device);
-        let q = to_vec(self.policy.head(features, message));
-        Ok(masked_argmax(&q, mask) as u8)
+        Ok(Features(self.policy.recurrent_rows(grid, vec)))
+    }
+
+    /// The greedy action the head gives `features` (this step's, from
+    /// [`AgentPolicy::observe`]) under `mask`, after the agents of `earlier` chose theirs.
+    ///
+    /// # Errors
+    /// A mask of another size than the network's or that allows nothing, a message outside
+    /// its slots or actions.
+    pub fn choose(
+        &self,
+        features: &Features,
+        mask: &[bool],
+        earlier: &[(usize, u8)],
+    ) -> Result<u8, AgentError> {
+        self.check_mask(mask)?;
+        let message = self.message(earlier)?;
+        Ok(self.head(features, mask, message))
+    }
+
+    /// The head's greedy action under a checked mask and message.
+    fn head(&self, features: &Features, mask: &[bool], message: Vec<f32>) -> u8 {
+        let len = message.len();
+        let message = tensor3(message, [1, 1, len], self.policy.device());
+        let q = to_vec(self.policy.head(features.0.clone(), message));
+        masked_argmax(&q, mask) as u8
+    }
+
+    /// The message of the actions of `earlier`, refused when one names an agent or an action
+    /// outside the network's.
+    fn message(&self, earlier: &[(usize, u8)]) -> Result<Vec<f32>, AgentError> {
+        let cfg = self.policy.config();
+        let mut message = vec![0.0_f32; cfg.message_dim()];
+        for &(agent, action) in earlier {
+            if agent >= cfg.n_agents_max || usize::from(action) >= cfg.n_actions {
+                return Err(AgentError::Message { agent, action });
+            }
+            message[agent * cfg.n_actions + usize::from(action)] = 1.0;
+        }
+        Ok(message)
+    }
+
+    /// Refuses a mask of another size than the network's actions, or one that allows nothing.
+    fn check_mask(&self, mask: &[bool]) -> Result<(), AgentError> {
+        let expected = self.policy.config().n_actions;
+        if mask.len() != expected {
+            return Err(AgentError::Size { what: "mask", found: mask.len(), expected });
+        }
+        if !mask.contains(&true) {
+            return Err(AgentError::NoAction);
+        }
+        Ok(())
     }
 }
+
+/// One step's output of an agent's recurrent pass, which its head reads
+/// ([`AgentPolicy::observe`], [`AgentPolicy::choose`]).
+#[derive(Clone, Debug)]
+pub struct Features(Tensor<3>);

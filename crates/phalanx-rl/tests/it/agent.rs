@@ -1,5 +1,6 @@
 //! An agent deciding alone (its own recurrent state, its observation, the actions of the
-//! agents before it) chooses, step after step, what the batched policy chooses for it.
+//! agents before it) chooses, step after step, what the batched policy chooses for it, with
+//! its recurrent pass and its head in one call or apart.
 
 use phalanx_env::{EnvConfig, MarlEnv, ObsBuffers, PoolConfig, PoolEnv, Task};
 use phalanx_rl::{AgentError, AgentPolicy};
@@ -26,11 +27,23 @@ fn agents_deciding_alone_act_as_the_batched_policy() {
         for step in 0..60 {
             steps += 1;
             team.act(&obs, 0.0, &mut rng, &mut batched);
+            // Every agent's recurrent pass first, then the heads in order (as the hierarchy's
+            // agents will), for odd steps; `act` for even ones.
+            let features: Vec<_> = (0..n_agents)
+                .map(|a| (step % 2 == 1).then(|| agents[a].observe(obs.grid_of(a), obs.vec_of(a))))
+                .collect();
             let mut earlier = Vec::new();
             for &agent in &obs.order {
-                let action = agents[agent]
-                    .act(obs.grid_of(agent), obs.vec_of(agent), obs.mask_of(agent), &earlier)
-                    .unwrap();
+                let mask = obs.mask_of(agent);
+                let action = match &features[agent] {
+                    Some(features) => {
+                        agents[agent].choose(features.as_ref().unwrap(), mask, &earlier)
+                    }
+                    None => {
+                        agents[agent].act(obs.grid_of(agent), obs.vec_of(agent), mask, &earlier)
+                    }
+                }
+                .unwrap();
                 alone[agent] = action;
                 earlier.push((agent, action));
             }
@@ -61,4 +74,17 @@ fn an_agent_refuses_inputs_that_do_not_fit() {
         Err(AgentError::Message { agent: 1, action: 9 })
     );
     assert!(agent.act(&grid, &vector, &mask, &[(1, 2)]).is_ok());
+    let features = agent.observe(&grid, &vector).unwrap();
+    assert!(matches!(
+        agent.observe(&grid, &vector[1..]),
+        Err(AgentError::Size { what: "vector", .. })
+    ));
+    assert!(matches!(
+        agent.choose(&features, &mask[1..], &[]),
+        Err(AgentError::Size { what: "mask", .. })
+    ));
+    assert_eq!(
+        agent.choose(&features, &mask, &[(8, 0)]),
+        Err(AgentError::Message { agent: 8, action: 0 })
+    );
 }
