@@ -71,10 +71,7 @@ pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     let end = run_world_paced(&mut world, &mut transport, timeout, period).context("the world")?;
     let runtime_s = started.elapsed().as_secs_f64();
     // The agents leave once they hear the end; the world stays until they have (bounded), so
-    // that the end reaches them before its session closes.
-    let deadline = Instant::now() + Duration::from_secs(2);
-    while !transport.agents_alive().is_empty() && Instant::now() < deadline {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    // that the end reaches them before its session closes. Those that stay are not waited for.
+    transport.wait_agents_left(Duration::from_secs(2));
     run::report(&named, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
 }

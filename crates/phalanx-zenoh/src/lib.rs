@@ -243,11 +243,6 @@ impl ZenohTransport {
         })
     }
 
-    /// This process's role.
-    pub fn role(&self) -> Role {
-        self.role
-    }
-
     /// Waits, at most `timeout`, until this process may start: an agent until it sees the
     /// world and every agent of the team (then it declares itself ready), the world until
     /// every agent is ready. Returns the team size.
@@ -258,7 +253,7 @@ impl ZenohTransport {
         let deadline = Instant::now() + timeout;
         loop {
             let (done, missing) = {
-                let seen = self.presence.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                let seen = self.seen();
                 match (self.role, seen.world) {
                     (Role::World(n), _) => {
                         let missing: Vec<u16> =
@@ -300,16 +295,26 @@ impl ZenohTransport {
         }
     }
 
-    /// The agents whose processes are alive now (their liveliness tokens).
-    pub fn agents_alive(&self) -> Vec<u16> {
-        let seen = self.presence.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        seen.alive.iter().copied().collect()
+    /// Waits, at most `limit`, until no agent's process is alive (their liveliness tokens are
+    /// gone): a world that published the end stays until the agents have heard it and left,
+    /// so that the end reaches them before its session closes. Whether they all left.
+    pub fn wait_agents_left(&self, limit: Duration) -> bool {
+        let deadline = Instant::now() + limit;
+        loop {
+            if self.seen().alive.is_empty() {
+                return true;
+            }
+            if Instant::now() >= deadline {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
     }
 
-    /// Whether the world's process is alive now (its liveliness token).
-    pub fn world_alive(&self) -> bool {
-        let seen = self.presence.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        seen.world.is_some()
+    /// What this process has seen of the others' tokens (a callback that panicked while
+    /// holding it left nothing half-written: each note is one insert or removal).
+    fn seen(&self) -> std::sync::MutexGuard<'_, Presence> {
+        self.presence.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 }
 
@@ -381,16 +386,11 @@ impl Transport for ZenohTransport {
     /// An agent is gone while its `ready` token is not there: its process ended (Zenoh
     /// removes a dead session's tokens), or it restarted and has not joined again yet.
     fn agent_gone(&self, agent: u16) -> bool {
-        !self
-            .presence
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .ready
-            .contains(&agent)
+        !self.seen().ready.contains(&agent)
     }
 
     fn world_gone(&self) -> bool {
-        !self.world_alive()
+        self.seen().world.is_none()
     }
 }
 

@@ -100,10 +100,7 @@ fn a_run_over_zenoh_is_the_in_process_run() {
         assert_eq!(world.wait_ready(JOIN).unwrap(), 3);
         run_world(&mut remote, &mut world, Duration::from_secs(10)).unwrap();
         // The agents hear the end before the world's session closes.
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while !world.agents_alive().is_empty() && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(5));
-        }
+        assert!(world.wait_agents_left(Duration::from_secs(5)));
     });
     assert_eq!(remote.plan(), local.plan());
     assert_eq!((remote.missed(), remote.stale()), (0, 0));
