@@ -19,7 +19,7 @@ use std::fmt::Write as _;
 use phalanx_core::Instance;
 
 use crate::scene::{
-    FOLLOW_MARGIN, Layout, Options, VIEW_PX, Window, check_options, following, follows, whole,
+    FOLLOW_MARGIN, Layout, Options, Window, cell_px, check_options, following, follows, whole,
 };
 use crate::svg::{self, Edges, Mode, Track, Writer, num};
 use crate::{Format, GIF_MAX_FRAMES, RenderError, font, raster};
@@ -115,12 +115,7 @@ fn car_gif(scene: &CarScene<'_>, options: &Options) -> Result<Vec<u8>, RenderErr
     raster::check_size(w, h)?;
     // At least 2 hundredths: browsers show shorter delays as 10.
     let delay = (layout.frame_s * 100.0).round().clamp(2.0, 65535.0) as u16;
-    let hold = (options.hold_s * 100.0).round().clamp(0.0, 65535.0) as u16;
-    let mut delays = vec![delay; layout.shown.len()];
-    if let Some(last) = delays.last_mut() {
-        *last = delay.saturating_add(hold);
-    }
-    raster::encode_gif(w, h, &delays, |k| {
+    raster::encode_gif(w, h, layout.shown.len(), delay, options.hold_s, |k| {
         let text = document(scene, &layout, options, Mode::Frame(k), Edges::Crisp);
         raster::draw(&text, w, h)
     })
@@ -159,7 +154,7 @@ impl CarLayout {
         };
         let frame_s = if frame_s > 0.0 { frame_s } else { STILL_FRAME_S };
         let windows = windows(scene, options, &shown);
-        let cell_px = (VIEW_PX / windows[0].w.max(windows[0].h)).round().clamp(1.0, 24.0);
+        let cell_px = cell_px(&windows);
         let grid = Layout {
             frames: shown.clone(),
             windows,
@@ -172,8 +167,7 @@ impl CarLayout {
 
     /// The picture's size in pixels.
     fn size(&self) -> (u32, u32) {
-        let (w, h) = svg::view_px(&self.grid);
-        (w.max(svg::MIN_WIDTH) as u32, (svg::TOP + h + FOOTER) as u32)
+        svg::size_with_footer(&self.grid, FOOTER)
     }
 }
 

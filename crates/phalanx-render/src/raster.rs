@@ -96,24 +96,26 @@ pub(crate) fn gif(
         None => (0..layout.frames.len()).collect(),
     };
     let delay = (100.0 / options.fps).round().clamp(1.0, 65535.0) as u16;
-    let hold = (options.hold_s * 100.0).round().clamp(0.0, 65535.0) as u16;
-    let mut delays = vec![delay; frames.len()];
-    if let Some(last) = delays.last_mut() {
-        *last = delay.saturating_add(hold);
-    }
-    encode_gif(w, h, &delays, |k| {
+    encode_gif(w, h, frames.len(), delay, options.hold_s, |k| {
         rgba(scene, layout, options, frames[k], Edges::Crisp).map(|(_, _, data)| data)
     })
 }
 
-/// A looping GIF of `delays.len()` frames of `w × h` pixels, frame `k` drawn by `frame(k)`
-/// (RGBA) and shown for `delays[k]` hundredths of a second.
+/// A looping GIF of `n` frames of `w × h` pixels, frame `k` drawn by `frame(k)` (RGBA) and
+/// shown for `delay` hundredths of a second, the last one `hold_s` seconds longer.
 pub(crate) fn encode_gif(
     w: u32,
     h: u32,
-    delays: &[u16],
+    n: usize,
+    delay: u16,
+    hold_s: f64,
     mut frame: impl FnMut(usize) -> Result<Vec<u8>, RenderError>,
 ) -> Result<Vec<u8>, RenderError> {
+    let hold = (hold_s * 100.0).round().clamp(0.0, 65535.0) as u16;
+    let mut delays = vec![delay; n];
+    if let Some(last) = delays.last_mut() {
+        *last = delay.saturating_add(hold);
+    }
     let (gw, gh) = (
         u16::try_from(w).map_err(|_| RenderError::TooLarge(w, h))?,
         u16::try_from(h).map_err(|_| RenderError::TooLarge(w, h))?,

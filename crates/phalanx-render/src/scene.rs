@@ -106,7 +106,7 @@ pub(crate) struct Layout {
 }
 
 /// Pixels the map view aims at along its longer side.
-pub(crate) const VIEW_PX: f64 = 480.0;
+const VIEW_PX: f64 = 480.0;
 
 impl Layout {
     /// The layout of `scene` under `options`, showing `max_frames` frames at most.
@@ -128,10 +128,15 @@ impl Layout {
         let loss = plan.steps().map(|at| formation_loss(at, goals)).collect();
         let ghosts = frames.iter().map(|&t| formation_fit(plan.at(t), goals)).collect();
         let windows = windows(scene, options, &frames);
-        let longer = windows[0].w.max(windows[0].h);
-        let cell_px = (VIEW_PX / longer).round().clamp(1.0, 24.0);
+        let cell_px = cell_px(&windows);
         Ok(Layout { frames, windows, loss, ghosts, cell_px })
     }
+}
+
+/// Pixels per cell for frames showing `windows` (all of one size): the longer side of the
+/// view near [`VIEW_PX`], between 1 and 24 pixels a cell.
+pub(crate) fn cell_px(windows: &[Window]) -> f64 {
+    (VIEW_PX / windows[0].w.max(windows[0].h)).round().clamp(1.0, 24.0)
 }
 
 /// Refuses scenes that cannot be drawn.

@@ -42,7 +42,7 @@ pub(crate) const TOP: f64 = 22.0;
 /// Pixels of the footer below the map: the counter line, the `L_f` trace and the legend.
 const FOOTER: f64 = 86.0;
 /// Smallest picture width, so that the footer fits.
-pub(crate) const MIN_WIDTH: f64 = 320.0;
+const MIN_WIDTH: f64 = 320.0;
 /// Pixels per font unit.
 pub(crate) const FONT: f64 = 2.0;
 
@@ -65,8 +65,13 @@ pub(crate) enum Edges {
 
 /// The picture's size in pixels.
 pub(crate) fn size(layout: &Layout) -> (u32, u32) {
+    size_with_footer(layout, FOOTER)
+}
+
+/// The size in pixels of a picture of `layout`'s view with a footer `footer` pixels high.
+pub(crate) fn size_with_footer(layout: &Layout, footer: f64) -> (u32, u32) {
     let (w, h) = view_px(layout);
-    (w.max(MIN_WIDTH) as u32, (TOP + h + FOOTER) as u32)
+    (w.max(MIN_WIDTH) as u32, (TOP + h + footer) as u32)
 }
 
 pub(crate) fn view_px(layout: &Layout) -> (f64, f64) {
