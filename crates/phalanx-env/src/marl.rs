@@ -108,6 +108,9 @@ pub struct StepOut {
     pub truncated: bool,
     /// Moves cancelled by collisions this step (information only).
     pub collisions: u32,
+    /// `L_f` of the positions after the step (information only; 0 for an environment that
+    /// has no formation).
+    pub formation_loss: f64,
 }
 
 /// A cooperative multi-agent environment with a team reward.
@@ -147,6 +150,7 @@ pub(crate) fn step_indices(
         terminated: step.terminated,
         truncated: step.truncated,
         collisions: step.info.n_cancelled,
+        formation_loss: env.formation_loss(),
     }
 }
 

@@ -41,6 +41,10 @@ pub enum AgentError {
     /// No action is allowed.
     #[error("the mask allows no action")]
     NoAction,
+    /// The network reads the whole team's observations (the centralised baseline), so no
+    /// agent can act with it alone.
+    #[error("the network is centralised: it acts for whole teams only")]
+    Centralised,
 }
 
 /// One agent of a team acting with a policy's network.
@@ -54,8 +58,11 @@ impl AgentPolicy {
     /// Agent `agent` (its slot in the network's one-hot and message) acting with `policy`.
     ///
     /// # Errors
-    /// If the network has no slot `agent`.
+    /// If the network has no slot `agent` or is centralised.
     pub fn new(mut policy: Policy, agent: usize) -> Result<AgentPolicy, AgentError> {
+        if policy.is_centralised() {
+            return Err(AgentError::Centralised);
+        }
         let slots = policy.config().n_agents_max;
         if agent >= slots {
             return Err(AgentError::Slot { agent, slots });

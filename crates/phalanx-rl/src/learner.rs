@@ -188,10 +188,11 @@ impl Learner {
         let n_obs = len + 1;
         let n_actions = cfg.n_actions;
         let ranks = ranks_of(&batch.order, n_batch * n_obs, n_agents);
+        let teams = vec![n_agents; n_batch]; // rows `b * N + agent`
 
         let (features, q_taken) = {
             let (obs, vec) = batch_inputs(batch, cfg, &self.device);
-            let (features, _) = self.online.forward_recurrent(obs, vec, None); // [B*N, L+1, H]
+            let (features, _) = self.online.forward_recurrent(obs, vec, None, &teams); // [B*N, L+1, H]
             let taken_actions = pad_actions(&batch.actions, n_batch * n_agents, len);
             let msgs = messages(&ranks, &taken_actions, batch, cfg, n_agents); // [B, N, L+1, M]
             let msgs = tensor3(msgs, [n_batch * n_agents, n_obs, cfg.message_dim()], &self.device);
@@ -226,7 +227,7 @@ impl Learner {
         }
         let plain = self.device.clone().inner();
         let (obs, vec) = batch_inputs(batch, cfg, &plain);
-        let (target_features, _) = self.target.forward_recurrent(obs, vec, None); // [B*N, L+1, H]
+        let (target_features, _) = self.target.forward_recurrent(obs, vec, None, &teams); // [B*N, L+1, H]
         let msgs = messages(&ranks, &greedy, batch, cfg, n_agents);
         let msgs = tensor3(msgs, [n_batch * n_agents, n_obs, cfg.message_dim()], &plain);
         let q_target = to_vec(self.target.head(target_features, msgs)); // [B*N, L+1, A]

@@ -16,7 +16,7 @@ use burn::module::{Module, ModuleMapper, Param, ParamId};
 use burn::nn::conv::Conv2d;
 use burn::nn::{Linear, PaddingConfig2d};
 use burn::tensor::activation::{relu, sigmoid, tanh};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Int, Tensor, TensorData};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -81,6 +81,12 @@ pub struct QNetConfig {
     pub lstm_layers: usize,
     /// Hidden width of the head (features + message -> hidden -> Q).
     pub head_hidden: usize,
+    /// Centralised (the CTCE baseline, docs/spec.md §7): every agent's row also reads the
+    /// encodings of its whole team, one block per agent slot, through a dense "team" layer
+    /// between the encoder and the LSTM. Such a network acts only with the team's
+    /// observations at hand (centralised execution); `false` (the default): each agent reads
+    /// its own observation alone.
+    pub centralised: bool,
 }
 
 impl Default for QNetConfig {
@@ -96,6 +102,7 @@ impl Default for QNetConfig {
             lstm_hidden: 128,
             lstm_layers: 1,
             head_hidden: 64,
+            centralised: false,
         }
     }
 }
@@ -194,6 +201,10 @@ impl QNetConfig {
                 *hidden
             }
         };
+        if self.centralised {
+            let team_in = self.n_agents_max.checked_add(1)?.checked_mul(enc_out)?;
+            total = total.checked_add(dense(team_in, enc_out)?)?;
+        }
         let gates = self.lstm_hidden.checked_mul(4)?;
         let mut d_in = enc_out;
         for _ in 0..self.lstm_layers {
@@ -246,7 +257,11 @@ impl QNetConfig {
         let head_hidden =
             linear(rng, self.lstm_hidden + self.message_dim(), self.head_hidden, true, device);
         let head_out = linear(rng, self.head_hidden, self.n_actions, true, device);
-        QNet { convs, dense, lstm, head_hidden, head_out }.map(&mut SequentialIds(0))
+        // Drawn last, so that a decentralised network of a seed is the one it always was.
+        let team = self
+            .centralised
+            .then(|| linear(rng, (self.n_agents_max + 1) * enc_out, enc_out, true, device));
+        QNet { convs, dense, lstm, head_hidden, head_out, team }.map(&mut SequentialIds(0))
     }
 }
 
@@ -271,6 +286,9 @@ pub struct QNet {
     lstm: Vec<LstmLayer>,
     head_hidden: Linear,
     head_out: Linear,
+    /// The team layer of a centralised network ([`QNetConfig::centralised`]): own encoding and
+    /// the team's, one block per agent slot, to the encoder's width.
+    team: Option<Linear>,
 }
 
 /// Recurrent state of a batch: `(cell, hidden)` per LSTM layer, each `[batch, H]`.
@@ -294,19 +312,41 @@ impl RecurrentState {
 }
 
 impl QNet {
+    /// Whether the network is centralised ([`QNetConfig::centralised`]).
+    pub fn is_centralised(&self) -> bool {
+        self.team.is_some()
+    }
+
+    /// The agent slots of a centralised network's team layer (its input is the own encoding
+    /// and one per slot); 0 for a decentralised network.
+    fn n_slots(&self) -> usize {
+        self.team.as_ref().map_or(0, |team| {
+            let [d_in, d_out] = team.weight.dims();
+            d_in / d_out - 1
+        })
+    }
+
     /// Encoder and LSTM layers over a batch of observation sequences.
     ///
-    /// `state` is the state before the first step (`None`: zeros).
+    /// `state` is the state before the first step (`None`: zeros). `teams` lays the rows out
+    /// as teams: the agent counts of consecutive blocks of rows, each block a team in
+    /// agent-slot order (`[3, 3]`: rows 0–2 one team, 3–5 another); only a centralised
+    /// network reads it.
     ///
     /// # Shapes
     /// - `obs`: `[batch, time, C, F, F]`
     /// - `vec`: `[batch, time, V]` (environment vector, then agent-slot one-hot)
     /// - returns features `[batch, time, H]` and the state after the last step
+    ///
+    /// # Panics
+    /// For a centralised network, if `teams` does not add up to `batch` or a team has more
+    /// agents than the network's slots.
     pub fn forward_recurrent(
         &self,
         obs: Tensor<5>,
         vec: Tensor<3>,
         state: Option<RecurrentState>,
+        teams: &[usize],
     ) -> (Tensor<3>, RecurrentState) {
         let [batch, time, channels, fov, _] = obs.dims();
         let vec_dim = vec.dims()[2];
@@ -325,6 +365,10 @@ impl QNet {
         };
         for layer in &self.dense {
             x = relu(layer.forward(x)); // [batch * time, E]
+        }
+        if let Some(team) = &self.team {
+            let pooled = team_blocks(x.clone(), teams, batch, time, self.n_slots()); // [batch * time, S*E]
+            x = relu(team.forward(Tensor::cat(vec![x, pooled], 1))); // [batch * time, E]
         }
         let enc_dim = x.dims()[1];
         let mut seq = x.reshape([batch, time, enc_dim]); // [batch, time, E]
@@ -357,6 +401,42 @@ impl QNet {
         let x = relu(self.head_hidden.forward(x)); // [batch, time, head_hidden]
         self.head_out.forward(x) // [batch, time, A]
     }
+}
+
+/// The team encodings each row of a centralised network reads: for the row of agent `i` of a
+/// team at time `t`, the encodings of every agent of that team at `t`, one block per agent
+/// slot, zeros in the slots the team does not fill.
+///
+/// # Shapes
+/// - `x`: `[batch * time, E]`, rows `(row, t)` row-major
+/// - returns `[batch * time, slots * E]`
+fn team_blocks(
+    x: Tensor<2>,
+    teams: &[usize],
+    batch: usize,
+    time: usize,
+    slots: usize,
+) -> Tensor<2> {
+    assert_eq!(teams.iter().sum::<usize>(), batch, "the teams must cover the batch's rows");
+    let [rows, enc_dim] = x.dims();
+    let device = x.device();
+    let zero = rows as i64; // the index of the zero row appended below
+    let mut idx = Vec::with_capacity(rows * slots);
+    let mut first = 0;
+    for &n in teams {
+        assert!(n <= slots, "a team of {n} agents does not fit {slots} agent slots");
+        for _agent in 0..n {
+            for t in 0..time {
+                idx.extend(
+                    (0..slots).map(|j| if j < n { ((first + j) * time + t) as i64 } else { zero }),
+                );
+            }
+        }
+        first += n;
+    }
+    let padded = Tensor::cat(vec![x, Tensor::<2>::zeros([1, enc_dim], &device)], 0); // [rows + 1, E]
+    let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [rows * slots]), &device);
+    padded.select(0, idx).reshape([rows, slots * enc_dim]) // [batch * time, S*E]
 }
 
 /// One LSTM layer with fused gates: the input projection runs once over the whole sequence and

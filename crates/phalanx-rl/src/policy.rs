@@ -228,20 +228,36 @@ impl Policy {
             &self.device,
         ); // [rows, 1, C, F, F]
         let vec = tensor3(vec, [rows, 1, vec_dim], &self.device); // [rows, 1, V]
-        self.recurrent_rows(grid, vec)
+        let teams: Vec<usize> = obs.iter().map(|env| env.n_agents).collect();
+        self.team_rows(grid, vec, &teams)
     }
 
-    /// The recurrent step of prepared inputs (`grid [rows, 1, C, F, F]`, `vec [rows, 1, V]`
-    /// with the agent-slot one-hot), carrying the state: the features `[rows, 1, H]`.
+    /// Whether the network reads the whole team's observations ([`QNetConfig::centralised`]):
+    /// then it acts only through [`Policy::act_batch`], never one agent alone.
+    pub fn is_centralised(&self) -> bool {
+        self.config.centralised
+    }
+
+    /// The recurrent step of prepared inputs of one agent each (`grid [rows, 1, C, F, F]`,
+    /// `vec [rows, 1, V]` with the agent-slot one-hot), carrying the state: the features
+    /// `[rows, 1, H]`.
     ///
     /// # Panics
-    /// If the rows differ from the last call's without a reset.
+    /// If the rows differ from the last call's without a reset, or the network is
+    /// centralised (it needs the team's rows).
     pub(crate) fn recurrent_rows(&mut self, grid: Tensor<5>, vec: Tensor<3>) -> Tensor<3> {
+        assert!(!self.is_centralised(), "a centralised network acts for whole teams only");
+        let rows = grid.dims()[0];
+        self.team_rows(grid, vec, &[rows])
+    }
+
+    /// [`Policy::recurrent_rows`] of rows laid out as teams (`teams`: their agent counts).
+    fn team_rows(&mut self, grid: Tensor<5>, vec: Tensor<3>, teams: &[usize]) -> Tensor<3> {
         let rows = grid.dims()[0];
         if let Some(state) = &self.state {
             assert_eq!(state.layers[0].0.dims()[0], rows, "agent counts changed without a reset");
         }
-        let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take()); // [rows, 1, H]
+        let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take(), teams); // [rows, 1, H]
         self.state = Some(state);
         features
     }

@@ -27,6 +27,10 @@ pub(crate) struct Collection {
     running: Vec<EpisodeLog>,
     /// Cancelled moves so far in each running episode.
     collisions: Vec<u64>,
+    /// Sum of `L_f` so far in each running episode, as the bits of the `f64` (exact through
+    /// the JSON); empty in checkpoints written before it was kept (then zeros).
+    #[serde(default)]
+    formation_loss: Vec<u64>,
     /// Environment steps since the last update.
     since_update: u64,
     /// The acting policy's recurrent state, per layer `(cell, hidden)`, `[Σ N_e, H]`
@@ -130,6 +134,7 @@ impl Collection {
                 .collect::<Result<_, _>>()?,
             running: log(&mut collector.running.iter())?,
             collisions: collector.collisions.clone(),
+            formation_loss: collector.formation_loss.iter().map(|it| it.to_bits()).collect(),
             since_update: collector.since_update,
             recurrent: collector.policy.as_ref().and_then(|policy| policy.recurrent_state()),
         })
@@ -150,6 +155,7 @@ impl Collection {
         let n_envs = self.agents.len();
         if self.running.len() != n_envs
             || self.collisions.len() != n_envs
+            || !(self.formation_loss.is_empty() || self.formation_loss.len() == n_envs)
             || self.replays.len() != learner.replays.len()
         {
             return Err(CollectionError::Inconsistent);
@@ -178,6 +184,11 @@ impl Collection {
             collector.running.push(episode);
         }
         collector.collisions = self.collisions;
+        collector.formation_loss = if self.formation_loss.is_empty() {
+            vec![0.0; n_envs]
+        } else {
+            self.formation_loss.into_iter().map(f64::from_bits).collect()
+        };
         collector.since_update = self.since_update;
         let mut policy = learner.policy();
         policy.set_recurrent_state(self.recurrent)?;

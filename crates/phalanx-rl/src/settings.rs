@@ -30,6 +30,11 @@ pub enum TrainTask {
     /// The end-to-end VDN baseline (docs/spec.md §7): one network of the five moves on the meta
     /// reward ([`Task::Meta`] on the pool, formation clipping), no hierarchy.
     EndToEnd,
+    /// The centralised (CTCE) baseline (docs/spec.md §7): the end-to-end task with a
+    /// centralised network ([`QNetConfig::centralised`]): every agent's Q reads the whole
+    /// team's observations and the actions chosen before it, so the network chooses the joint
+    /// action, agent after agent in leader order, from the team's observations.
+    Centralised,
 }
 
 impl TrainTask {
@@ -40,7 +45,14 @@ impl TrainTask {
             TrainTask::Formation => "formation",
             TrainTask::Meta => "meta",
             TrainTask::EndToEnd => "e2e",
+            TrainTask::Centralised => "ctce",
         }
+    }
+
+    /// Whether the task is one of the end-to-end baselines (the five moves on the meta
+    /// reward with formation clipping, no hierarchy).
+    pub fn is_end_to_end(self) -> bool {
+        matches!(self, TrainTask::EndToEnd | TrainTask::Centralised)
     }
 
     /// The environment's reward task.
@@ -48,7 +60,7 @@ impl TrainTask {
         match self {
             TrainTask::PathFinding => Task::PathFinding,
             TrainTask::Formation => Task::Formation,
-            TrainTask::Meta | TrainTask::EndToEnd => Task::Meta,
+            TrainTask::Meta | TrainTask::EndToEnd | TrainTask::Centralised => Task::Meta,
         }
     }
 }
@@ -161,7 +173,8 @@ impl TrainConfig {
     ///   300 000 steps;
     /// - e2e: the meta task's teams, episodes and reward scale with the five moves, one fixed
     ///   multiple (1) of the base weights, and 900 000 steps (three times the meta policy's,
-    ///   docs/spec.md §7).
+    ///   docs/spec.md §7);
+    /// - ctce: the e2e settings with a centralised network.
     pub fn for_task(task: TrainTask) -> TrainConfig {
         let base = TrainConfig::default();
         match task {
@@ -191,6 +204,10 @@ impl TrainConfig {
                 },
                 ..TrainConfig::for_task(TrainTask::Meta)
             },
+            TrainTask::Centralised => {
+                let e2e = TrainConfig::for_task(TrainTask::EndToEnd);
+                TrainConfig { net: QNetConfig { centralised: true, ..e2e.net.clone() }, ..e2e }
+            }
         }
     }
 
@@ -318,9 +335,10 @@ impl TrainConfig {
             .map(|e| {
                 let k = counts[e % counts.len()];
                 let env = first.with_agents(k)?;
-                Ok(match task {
-                    TrainTask::EndToEnd => env.with_formation_weight(self.end_to_end_weight(k)),
-                    _ => env,
+                Ok(if task.is_end_to_end() {
+                    env.with_formation_weight(self.end_to_end_weight(k))
+                } else {
+                    env
                 })
             })
             .collect::<Result<Vec<_>, EnvError>>()?;

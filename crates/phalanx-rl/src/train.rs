@@ -26,6 +26,9 @@ pub mod metrics {
     pub const EPSILON: &str = "charts/epsilon";
     /// Moves cancelled by collisions in a finished training episode.
     pub const COLLISIONS: &str = "charts/collisions";
+    /// Mean `L_f` over the steps of a finished training episode (the positions after each
+    /// step).
+    pub const FORMATION_LOSS: &str = "charts/formation_loss";
     /// Masked mean squared TD error of an update.
     pub const TD_LOSS: &str = "losses/td_loss";
     /// Mean team Q of the taken actions in an update.
@@ -96,6 +99,8 @@ pub struct Collector<E: MarlEnv> {
     outs: Vec<StepOut>,
     pub(crate) running: Vec<Episode>,
     pub(crate) collisions: Vec<u64>,
+    /// Sum of `L_f` over the steps so far of each running episode.
+    pub(crate) formation_loss: Vec<f64>,
     actions: Vec<u8>,
     restart: Vec<bool>,
     pub(crate) policy: Option<Policy>,
@@ -123,6 +128,7 @@ impl<E: MarlEnv + Send> Collector<E> {
             outs: vec![StepOut::default(); envs.len()],
             running: Vec::new(),
             collisions: vec![0; envs.len()],
+            formation_loss: vec![0.0; envs.len()],
             actions: vec![0; total],
             restart: vec![false; envs.len()],
             policy: None,
@@ -219,6 +225,7 @@ impl Learner {
             let episode = &mut c.running[e];
             episode.push_step(&actions[at..at + n], out.team_reward, &c.obs[e]);
             c.collisions[e] += u64::from(out.collisions);
+            c.formation_loss[e] += out.formation_loss;
             self.counters.env_steps += 1;
             c.since_update += 1;
             let done = out.terminated || out.truncated || episode.len >= c.max_steps;
@@ -231,6 +238,8 @@ impl Learner {
             sink.record(metrics::EPISODIC_RETURN, now, f64::from(episode.team_return()));
             sink.record(metrics::EPISODIC_LENGTH, now, episode.len as f64);
             sink.record(metrics::COLLISIONS, now, std::mem::take(&mut c.collisions[e]) as f64);
+            let loss_sum = std::mem::take(&mut c.formation_loss[e]);
+            sink.record(metrics::FORMATION_LOSS, now, loss_sum / episode.len.max(1) as f64);
             sink.record(metrics::SUCCESS, now, if out.terminated { 1.0 } else { 0.0 });
             sink.record(metrics::EPSILON, now, epsilon);
             let started = Episode::begin(&mut c.envs[e], self.rng.random::<u64>(), &mut c.obs[e]);

@@ -80,7 +80,7 @@ impl MarlEnv for Corridor {
             team_reward: if done { 10.0 } else { -1.0 },
             terminated: done,
             truncated: !done && self.t >= LIMIT,
-            collisions: 0,
+            ..StepOut::default()
         }
     }
 }
@@ -97,6 +97,7 @@ pub(crate) fn corridor_net() -> QNetConfig {
         lstm_hidden: 32,
         lstm_layers: 1,
         head_hidden: 32,
+        centralised: false,
     }
 }
 

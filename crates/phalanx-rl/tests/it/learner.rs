@@ -126,3 +126,30 @@ fn configs_round_trip_through_json() {
     let json = serde_json::to_string(&net).unwrap();
     assert_eq!(serde_json::from_str::<QNetConfig>(&json).unwrap(), net);
 }
+
+#[test]
+fn a_centralised_learner_trains_and_reads_back() {
+    let device = crate::train_device();
+    let net = QNetConfig { centralised: true, ..corridor_net() };
+    let config = LearnerConfig { learning_starts: 2, ..corridor_learner() };
+    let mut learner = Learner::new(net, config, &[2], 9, &device);
+    let mut losses = Vec::new();
+    let mut collector = Collector::new(vec![Corridor::new()], 10);
+    learner.train(&mut collector, 80, &mut |name: &'static str, _, value| {
+        if name == phalanx_rl::metrics::TD_LOSS {
+            losses.push(value);
+        }
+    });
+    assert!(!losses.is_empty() && losses.iter().all(|it| it.is_finite()), "{losses:?}");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("learner.ckpt");
+    learner.save(&path).unwrap();
+    let loaded = Learner::load(&path, &device).unwrap();
+    assert!(loaded.net_config().centralised);
+    let (policy, header) =
+        phalanx_rl::policy_file::load_policy_any(&path, &crate::plain_device()).unwrap();
+    assert!(policy.is_centralised() && header.net_config.centralised);
+    // No agent acts with it alone.
+    let err = phalanx_rl::AgentPolicy::new(policy, 0).unwrap_err();
+    assert_eq!(err, phalanx_rl::AgentError::Centralised);
+}

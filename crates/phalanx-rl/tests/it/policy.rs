@@ -11,7 +11,11 @@ use rand_chacha::ChaCha8Rng;
 use crate::plain_device;
 
 fn policy() -> phalanx_rl::Policy {
-    let config = QNetConfig::default();
+    policy_of(false)
+}
+
+fn policy_of(centralised: bool) -> phalanx_rl::Policy {
+    let config = QNetConfig { centralised, ..QNetConfig::default() };
     let net = config.init(&mut ChaCha8Rng::seed_from_u64(3), &plain_device());
     phalanx_rl::Policy::new(net, config, &plain_device())
 }
@@ -36,12 +40,12 @@ fn observations() -> (Vec<PoolEnv>, Vec<ObsBuffers>) {
 
 /// Q-values (bits) of every agent for two steps, acting on all episodes at once or on each
 /// alone; the second step checks the carried recurrent state.
-fn q_two_steps(batched: bool) -> Vec<u32> {
+fn q_two_steps(batched: bool, centralised: bool) -> Vec<u32> {
     let (mut envs, mut obs) = observations();
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let mut res = Vec::new();
-    let mut singles: Vec<_> = envs.iter().map(|_| policy()).collect();
-    let mut joint = policy();
+    let mut singles: Vec<_> = envs.iter().map(|_| policy_of(centralised)).collect();
+    let mut joint = policy_of(centralised);
     for _ in 0..2 {
         let n: usize = obs.iter().map(|it| it.n_agents).sum();
         let (mut actions, mut q) = (vec![0_u8; n], vec![0.0_f32; n * 5]);
@@ -74,13 +78,16 @@ fn q_two_steps(batched: bool) -> Vec<u32> {
 
 #[test]
 fn batched_acting_equals_acting_alone() {
-    let (batched, alone) = (q_two_steps(true), q_two_steps(false));
-    assert_eq!(batched.len(), 2 * 9 * 5);
-    // Rows of one batch may differ in the last bit from a batch of one (matrix kernels block
-    // by rows), so compare values, not bits.
-    for (a, b) in batched.iter().zip(&alone) {
-        let (a, b) = (f32::from_bits(*a), f32::from_bits(*b));
-        assert!((a - b).abs() <= 1e-5 * (1.0 + a.abs()), "{a} vs {b}");
+    // A centralised network's rows read their own team only, so it batches as well.
+    for centralised in [false, true] {
+        let (batched, alone) = (q_two_steps(true, centralised), q_two_steps(false, centralised));
+        assert_eq!(batched.len(), 2 * 9 * 5);
+        // Rows of one batch may differ in the last bit from a batch of one (matrix kernels
+        // block by rows), so compare values, not bits.
+        for (a, b) in batched.iter().zip(&alone) {
+            let (a, b) = (f32::from_bits(*a), f32::from_bits(*b));
+            assert!((a - b).abs() <= 1e-5 * (1.0 + a.abs()), "{a} vs {b}, {centralised}");
+        }
     }
 }
 
