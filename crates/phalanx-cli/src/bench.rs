@@ -15,7 +15,8 @@
 //! `swarm`, `astar`, `jsa` (formation first, then makespan) or `jsa:W` (minimises
 //! `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the scripted rule, closing up above
 //! `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`, default 1), `e2e` (the end-to-end
-//! baseline, `--e2e DIR` or `models/e2e`). Joint-state A* runs on maps
+//! VDN baseline, `--e2e DIR` or `models/e2e`), `ctce` (the centralised baseline, `--ctce DIR`
+//! or `models/ctce`). Joint-state A* runs on maps
 //! up to `--jsa-max-side` only.
 //!
 //! Output in `--out`: `runs.jsonl` (one record per run, appended as it finishes; `--resume`
@@ -140,6 +141,10 @@ pub(crate) struct BenchArgs {
     /// models/e2e).
     #[arg(long, value_name = "DIR")]
     e2e: Option<PathBuf>,
+    /// The centralised baseline's directory for the method `ctce` (default: the shipped
+    /// models/ctce).
+    #[arg(long, value_name = "DIR")]
+    ctce: Option<PathBuf>,
 }
 
 /// Runs `phalanx bench`.
@@ -210,16 +215,28 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         Some(list) => list.clone(),
         None => {
             let mut names = default_methods(name, meta_file.is_some());
-            if args.e2e.is_some() || models::weights_file(None, "e2e").is_ok() {
-                names.push("e2e".to_owned());
+            for (baseline, dir) in [("e2e", &args.e2e), ("ctce", &args.ctce)] {
+                if dir.is_some() || models::weights_file(None, baseline).is_ok() {
+                    names.push(baseline.to_owned());
+                }
             }
             names
         }
     };
+    let sources = Sources {
+        jsa_max_side: Some(args.jsa_max_side),
+        meta: meta_file.as_deref(),
+        e2e: args.e2e.as_deref(),
+        ctce: args.ctce.as_deref(),
+    };
     let mut methods = names
         .iter()
-        .map(|spec| method(spec, args.jsa_max_side, meta_file.as_deref(), args.e2e.as_deref()))
+        .map(|spec| Ok(Method::named(spec, &sources)?))
         .collect::<anyhow::Result<Vec<Method>>>()?;
+    let baseline_checksum = |dir: &Option<PathBuf>, baseline: &str| -> anyhow::Result<_> {
+        let file = dir.as_deref().map(|d| models::weights_file(Some(d), baseline)).transpose()?;
+        file.as_deref().map(checksum).transpose()
+    };
 
     util::written(std::fs::create_dir_all(&args.out), &args.out)?;
     let settings = serde_json::json!({
@@ -233,8 +250,8 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         // The learned policies by their weights' checksums, not by how their path is spelt,
         // so that a resume from another directory or binary finds the same settings.
         "meta": meta_file.as_deref().map(checksum).transpose()?,
-        "e2e": args.e2e.as_deref().map(|d| models::weights_file(Some(d), "e2e")).transpose()?
-            .as_deref().map(checksum).transpose()?,
+        "e2e": baseline_checksum(&args.e2e, "e2e")?,
+        "ctce": baseline_checksum(&args.ctce, "ctce")?,
         "cases": cases.iter().map(|c| c.label.clone()).collect::<Vec<_>>(),
     });
     let settings_path = args.out.join("bench.json");
@@ -370,19 +387,6 @@ fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
         util::warn("no meta policy found (models/meta or --meta): the hierarchy is left out");
     }
     names
-}
-
-/// The method named `spec` (`NAME[:PARAM]`); joint-state A* runs on sides up to
-/// `jsa_max_side`, `hrl` needs the meta policy `meta_file`, `e2e` reads the end-to-end
-/// policy of `e2e_dir` (default: the shipped `models/e2e`).
-pub(crate) fn method(
-    spec: &str,
-    jsa_max_side: u32,
-    meta_file: Option<&Path>,
-    e2e_dir: Option<&Path>,
-) -> anyhow::Result<Method> {
-    let sources = Sources { jsa_max_side: Some(jsa_max_side), meta: meta_file, e2e: e2e_dir };
-    Ok(Method::named(spec, &sources)?)
 }
 
 /// `runs.csv`, `cells.json`, `<name>.md` and `<name>.svg` of the records.

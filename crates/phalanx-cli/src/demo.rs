@@ -18,7 +18,7 @@ use std::process::ExitCode;
 use anyhow::Context as _;
 use phalanx_core::Instance;
 use phalanx_eval::suite::Case;
-use phalanx_eval::{Method, Settings, Solved};
+use phalanx_eval::{Method, Settings, Solved, Sources};
 use phalanx_io::{MovingAiMap, PlanStats};
 use phalanx_plan::planner::Outcome;
 use phalanx_render::{Format, Options, Scene};
@@ -71,7 +71,11 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     let names = [hierarchy, "pathfinding", "cbs", "swarm"];
     let mut methods = names
         .iter()
-        .map(|spec| bench::method(spec, 0, meta_file.as_deref(), None))
+        .map(|spec| {
+            let sources =
+                Sources { jsa_max_side: Some(0), meta: meta_file.as_deref(), ..Sources::default() };
+            Ok(Method::named(spec, &sources)?)
+        })
         .collect::<anyhow::Result<Vec<Method>>>()?;
     let settings = Settings {
         time_limit_s: args.time_limit,

@@ -39,6 +39,9 @@ pub(crate) enum PolicyName {
     Leader,
     /// The end-to-end VDN baseline: the five moves on the meta task (`phalanx train e2e`).
     E2e,
+    /// The centralised (CTCE) baseline: one network over the team's observations choosing
+    /// the joint action on the meta task (`phalanx train ctce`).
+    Ctce,
 }
 
 impl PolicyName {
@@ -50,6 +53,7 @@ impl PolicyName {
             PolicyName::Hrl => "meta",
             PolicyName::Leader => "leader",
             PolicyName::E2e => "e2e",
+            PolicyName::Ctce => "ctce",
         }
     }
 
@@ -58,7 +62,7 @@ impl PolicyName {
         match self {
             PolicyName::PathFinding => Task::PathFinding,
             PolicyName::Formation => Task::Formation,
-            PolicyName::Hrl | PolicyName::Leader | PolicyName::E2e => Task::Meta,
+            PolicyName::Hrl | PolicyName::Leader | PolicyName::E2e | PolicyName::Ctce => Task::Meta,
         }
     }
 }

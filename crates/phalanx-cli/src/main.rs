@@ -76,6 +76,9 @@ enum Command {
     Train(train::TrainCmd),
     /// Evaluate a trained policy on fresh maps (success rate, makespan, collisions, L_f).
     Eval(eval::EvalCmd),
+    /// Draw several training runs' curves on one figure (team reward, episode length,
+    /// formation loss and success against environment steps, as the paper's Fig. 4).
+    Curves(plot::CurvesCmd),
     /// Estimate the meta reward's balancing weight w_f (the paper's Eq. 14).
     Weight(weight::WeightCmd),
     /// The product at a glance: the learned hierarchy, path finding, CBS and SWARM-MAPF on a
@@ -119,6 +122,7 @@ fn main() -> ExitCode {
         Command::Agent(cmd) => agent::run(cmd),
         Command::Train(cmd) => train::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
+        Command::Curves(cmd) => plot::run(cmd),
         Command::Weight(cmd) => weight::run(cmd),
         Command::Render(args) => render::run(args),
         Command::Motion(args) => motion::run(args),

@@ -1,6 +1,7 @@
-//! `phalanx train pathfinding|formation|meta|e2e`: trains a low-level policy (VDN + double DQN,
-//! docs/spec.md §6) on the training pool, or the meta policy over the two frozen ones (`phalanx_rl::
-//! MetaEnv`) or the end-to-end baseline on the meta reward, with a progress bar on stderr, metrics appended as JSON lines to
+//! `phalanx train pathfinding|formation|meta|e2e|ctce`: trains a low-level policy (VDN + double
+//! DQN, docs/spec.md §6) on the training pool, or the meta policy over the two frozen ones
+//! (`phalanx_rl::MetaEnv`) or an end-to-end baseline (VDN or the centralised CTCE) on the meta
+//! reward, with a progress bar on stderr, metrics appended as JSON lines to
 //! `DIR/metrics.jsonl` (one `{"name", "step", "value"}` object per value, names of
 //! `phalanx_rl::metrics`), an atomic checkpoint `DIR/checkpoint` with the policy file
 //! `DIR/policy.bin` beside it every N updates and at the end, and the training curves
@@ -53,6 +54,9 @@ pub(crate) enum TaskName {
     /// The end-to-end VDN baseline (docs/spec.md §7): the five moves on the meta reward with
     /// formation clipping and the same w_f, no hierarchy.
     E2e,
+    /// The centralised (CTCE) baseline: the e2e task with one network that reads the whole
+    /// team's observations and chooses the joint action agent after agent.
+    Ctce,
 }
 
 impl TaskName {
@@ -63,6 +67,7 @@ impl TaskName {
             TaskName::Formation => TrainTask::Formation,
             TaskName::Meta => TrainTask::Meta,
             TaskName::E2e => TrainTask::EndToEnd,
+            TaskName::Ctce => TrainTask::Centralised,
         }
     }
 }
@@ -91,10 +96,11 @@ pub(crate) struct TrainCmd {
     /// overrides the config's `steps`.
     #[arg(long, value_name = "N")]
     steps: Option<u64>,
-    /// Meta and e2e: train one policy at M times the base weight w_f (not weight-conditioned).
+    /// Meta, e2e and ctce: train one policy at M times the base weight w_f (not
+    /// weight-conditioned).
     #[arg(long, value_name = "M", conflicts_with = "formation_weight", value_parser = util::non_negative)]
     weight_multiple: Option<f64>,
-    /// Meta and e2e: train one policy with the formation weight W for every team size.
+    /// Meta, e2e and ctce: train one policy with the formation weight W for every team size.
     #[arg(long, value_name = "W", value_parser = util::non_negative)]
     formation_weight: Option<f64>,
 }
@@ -117,8 +123,8 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     {
         if let Some(v) = value {
             anyhow::ensure!(
-                matches!(task, TrainTask::Meta | TrainTask::EndToEnd),
-                "{flag} {v} is for `phalanx train meta` and `phalanx train e2e`"
+                task == TrainTask::Meta || task.is_end_to_end(),
+                "{flag} {v} is for `phalanx train meta`, `e2e` and `ctce`"
             );
         }
     }
@@ -170,7 +176,7 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
         return train(collector, learner, &config, dir, cmd.resume);
     }
-    if task == TrainTask::EndToEnd {
+    if task.is_end_to_end() {
         let (mut formation, _) = models::load(config.meta.formation.as_deref(), "formation")?;
         config.meta.base_weight = Some(meta::base_weights(&config, None, &mut formation)?);
     }

@@ -4,7 +4,7 @@
 //! (suboptimality bound, default 1.2), `swarm`, `astar`, `jsa` (formation first, then
 //! makespan) or `jsa:W` (minimises `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the
 //! scripted rule, closing up above `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`,
-//! default 1) and `e2e` (the end-to-end baseline).
+//! default 1), `e2e` (the end-to-end VDN baseline) and `ctce` (the centralised baseline).
 //!
 //! The learned ones are loaded by `phalanx_rl::models` (given files or the shipped models).
 
@@ -20,8 +20,8 @@ use thiserror::Error;
 use crate::{Method, Solver};
 
 /// The names [`Method::named`] knows.
-pub const METHOD_NAMES: [&str; 9] =
-    ["cbs", "ecbs", "swarm", "astar", "jsa", "pathfinding", "leader", "hrl", "e2e"];
+pub const METHOD_NAMES: [&str; 10] =
+    ["cbs", "ecbs", "swarm", "astar", "jsa", "pathfinding", "leader", "hrl", "e2e", "ctce"];
 
 /// The CBS improvements by their names in `cbs:FLAGS`.
 pub const CBS_FLAGS: [&str; 6] = ["pc", "bp", "rect", "target", "cg", "cat"];
@@ -35,6 +35,8 @@ pub struct Sources<'a> {
     pub meta: Option<&'a Path>,
     /// The end-to-end policy of `e2e` (a file or weights directory; `None`: the shipped one).
     pub e2e: Option<&'a Path>,
+    /// The centralised policy of `ctce` (a file or weights directory; `None`: the shipped one).
+    pub ctce: Option<&'a Path>,
 }
 
 /// Why a method name cannot be run.
@@ -144,9 +146,10 @@ impl Method {
                 let low = models::low_level_of(pathfinding, None).map_err(model)?;
                 Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
             }
-            "e2e" => {
+            "e2e" | "ctce" => {
                 no_param()?;
-                let (policy, _) = models::load(sources.e2e, "e2e").map_err(model)?;
+                let path = if name == "e2e" { sources.e2e } else { sources.ctce };
+                let (policy, _) = models::load(path, name).map_err(model)?;
                 Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
             }
             "hrl" => {

@@ -4,34 +4,65 @@
 use crate::RenderError;
 use crate::chart::{Axis, Figure, Marker, Panel, Point, Series, chart_svg};
 
-/// One panel: a title and its `(environment step, value)` points.
+/// One panel: a title and one line per run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Curve {
     /// The panel's title.
     pub title: String,
+    /// The runs' lines, in legend order.
+    pub lines: Vec<Line>,
+}
+
+/// One run's `(environment step, value)` points in a panel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Line {
+    /// The run's name in the legend (`None`: no legend, as for one run's curves).
+    pub name: Option<String>,
     /// The points, in step order.
     pub points: Vec<(f64, f64)>,
 }
 
-/// The curves as an SVG of panels in two columns, each the trailing moving average of
-/// `window` points.
+/// The curves as an SVG of panels in two columns, each line the trailing moving average of
+/// `window` points; every panel shares the step axis, and a panel with named lines has a
+/// legend (the line of run `k` has colour `k` in every panel).
 ///
 /// # Errors
 /// If the chart cannot be drawn (a bug).
 pub fn training_curves(curves: &[Curve], window: usize) -> Result<String, RenderError> {
     let rows = curves.len().div_ceil(2).max(1);
-    let max_step = curves.iter().flat_map(|c| &c.points).map(|it| it.0).fold(1.0_f64, f64::max);
+    let max_step = curves
+        .iter()
+        .flat_map(|c| &c.lines)
+        .flat_map(|line| &line.points)
+        .map(|it| it.0)
+        .fold(1.0_f64, f64::max);
     let panels = curves
         .iter()
         .map(|curve| {
-            let smooth = moving_average(&curve.points, window);
+            let smooth: Vec<Vec<(f64, f64)>> =
+                curve.lines.iter().map(|line| moving_average(&line.points, window)).collect();
             let (lo, hi) =
-                smooth.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), it| {
+                smooth.iter().flatten().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), it| {
                     (lo.min(it.1), hi.max(it.1))
                 });
             let (lo, hi) = if lo.is_finite() { (lo, hi.max(lo + 1e-9)) } else { (0.0, 1.0) };
             let pad = (hi - lo) * 0.05;
-            let points = smooth.iter().map(|&(x, y)| Point { x, y, marker: Marker::None });
+            let series = curve
+                .lines
+                .iter()
+                .zip(&smooth)
+                .enumerate()
+                .map(|(colour, (line, points))| Series {
+                    name: line.name.clone(),
+                    colour,
+                    width: 1,
+                    line: true,
+                    points: points
+                        .iter()
+                        .map(|&(x, y)| Point { x, y, marker: Marker::None })
+                        .collect(),
+                })
+                .collect();
             Panel {
                 title: format!("{} (moving average of {window})", curve.title),
                 x: Axis {
@@ -39,14 +70,8 @@ pub fn training_curves(curves: &[Curve], window: usize) -> Result<String, Render
                     ..Axis::linear((0.0, max_step))
                 },
                 y: Axis::linear((lo - pad, hi + pad)),
-                series: vec![Series {
-                    name: None,
-                    colour: 0,
-                    width: 1,
-                    line: true,
-                    points: points.collect(),
-                }],
-                legend: false,
+                series,
+                legend: curve.lines.iter().any(|line| line.name.is_some()),
             }
         })
         .collect();

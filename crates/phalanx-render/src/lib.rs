@@ -40,7 +40,7 @@ mod svg;
 use thiserror::Error;
 
 pub use cars::{CarFrame, CarScene, Pose, car_svg, render_cars};
-pub use curves::{Curve, training_curves};
+pub use curves::{Curve, Line, training_curves};
 pub use raster::GIF_MAX_FRAMES;
 pub use scene::{Crop, Options, Scene};
 

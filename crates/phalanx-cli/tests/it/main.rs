@@ -428,11 +428,32 @@ fn meta_training_weight_and_hierarchy_run_end_to_end() {
         assert!(svg.contains("animateTransform") || svg.contains("<svg"), "episode {k}");
     }
     assert!(!d.join("pics/episode-2.svg").exists(), "only the episodes run are drawn");
-    let bench = ["bench", "table2", "--quick", "--methods", "e2e", "--e2e", "e2e", "--out", "b"];
-    check(&phalanx(d, &bench), 0);
+    // The centralised baseline: the e2e settings with a centralised network.
+    let args = ["train", "ctce", "--config", "meta.json", "--steps", "60", "--out", "ctce"];
+    check(&phalanx(d, &args), 0);
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("ctce/config.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        (&saved["net"]["n_actions"], &saved["net"]["centralised"]),
+        (&5.into(), &true.into())
+    );
+    let args = ["eval", "--policy", "ctce", "--weights", "ctce", "--maps", "2", "--size", "16"];
+    let (stdout, _) = check(&phalanx(d, &[&args[..], &["--json"]].concat()), 0);
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(report["episodes"], 2, "{stdout}");
+    let bench = ["bench", "table2", "--quick", "--methods", "e2e,ctce", "--out", "b"];
+    check(&phalanx(d, &[&bench[..], &["--e2e", "e2e", "--ctce", "ctce"]].concat()), 0);
     let runs = std::fs::read_to_string(d.join("b/runs.jsonl")).unwrap();
-    assert_eq!(runs.lines().count(), 7 * 2);
+    assert_eq!(runs.lines().count(), 7 * 2 * 2);
     assert!(runs.lines().all(|l| !l.contains("\"outcome\":\"invalid\"")), "{runs}");
+    // The three runs' curves on one figure (the paper's Fig. 4).
+    check(&phalanx(d, &["curves", "hrl=run", "e2e", "ctce/metrics.jsonl", "-o", "fig4.svg"]), 0);
+    let svg = std::fs::read_to_string(d.join("fig4.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.len() > 1000);
+    let (_, stderr) = check(&phalanx(d, &["curves", "nowhere", "-o", "x.svg"]), 2);
+    assert!(stderr.contains("nowhere"), "{stderr}");
+    assert!(!d.join("x.svg").exists());
     // A low-level policy file is no meta policy.
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/pathfinding");
     let args = ["eval", "--policy", "hrl", "--weights", shipped.to_str().unwrap(), "--maps", "1"];

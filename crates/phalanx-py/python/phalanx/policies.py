@@ -20,7 +20,8 @@ Observations = dict[str, dict[str, np.ndarray]]
 
 
 class Policy:
-    """A learned policy of the five moves (``pathfinding``, ``formation`` or ``e2e``)."""
+    """A learned policy of the five moves (``pathfinding``, ``formation``, ``e2e`` or
+    ``ctce``)."""
 
     def __init__(self, name: str, weights: str | os.PathLike | None = None) -> None:
         self.name = name
@@ -82,11 +83,12 @@ def load_policy(
     name: str, weights: str | os.PathLike | None = None, multiple: float = 1.0
 ) -> Policy | HierarchicalPolicy:
     """A shipped policy (``models/<name>``) or the one in ``weights``: ``pathfinding``,
-    ``formation``, ``e2e`` or ``hrl`` (at ``multiple × w_f``)."""
+    ``formation``, ``e2e``, ``ctce`` (the centralised baseline: it acts for the whole team at
+    once) or ``hrl`` (at ``multiple × w_f``)."""
     if name == "hrl":
         return HierarchicalPolicy(weights, multiple)
-    if name not in ("pathfinding", "formation", "e2e"):
+    if name not in ("pathfinding", "formation", "e2e", "ctce"):
         raise _phalanx.PhalanxError(
-            f"policy {name!r}: pathfinding, formation, e2e or hrl"
+            f"policy {name!r}: pathfinding, formation, e2e, ctce or hrl"
         )
     return Policy(name, weights)
