@@ -45,7 +45,13 @@ pub fn training_curves(curves: &[Curve], window: usize) -> Result<String, Render
                 smooth.iter().flatten().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), it| {
                     (lo.min(it.1), hi.max(it.1))
                 });
-            let (lo, hi) = if lo.is_finite() { (lo, hi.max(lo + 1e-9)) } else { (0.0, 1.0) };
+            // A flat line gets a range of ±5 % of its value (at least ±0.05) around it.
+            let flat = lo.abs().max(1.0) * 0.05;
+            let (lo, hi) = match (lo.is_finite(), hi - lo > 1e-9) {
+                (false, _) => (0.0, 1.0),
+                (true, true) => (lo, hi),
+                (true, false) => (lo - flat, hi + flat),
+            };
             let pad = (hi - lo) * 0.05;
             let series = curve
                 .lines
