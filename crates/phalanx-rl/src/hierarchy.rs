@@ -51,11 +51,15 @@ pub enum LowLevelError {
         /// The formation policy's value.
         formation: usize,
     },
+    /// A centralised network (it reads the whole team's observations), which no agent of a
+    /// decentralised hierarchy can run alone.
+    #[error("the {0} policy is centralised")]
+    Centralised(&'static str),
 }
 
 impl LowLevel {
-    /// The low level of two trained policies (five actions each, the same field of view and
-    /// agent slots, so that both read the same observations and messages).
+    /// The low level of two trained policies (five actions each, decentralised, the same field
+    /// of view and agent slots, so that both read the same observations and messages).
     ///
     /// # Errors
     /// If the policies do not fit together.
@@ -63,6 +67,9 @@ impl LowLevel {
         for (policy, p) in [("path-finding", &pathfinding), ("formation", &formation)] {
             if p.config().n_actions != 5 {
                 return Err(LowLevelError::Actions { policy, found: p.config().n_actions });
+            }
+            if p.is_centralised() {
+                return Err(LowLevelError::Centralised(policy));
             }
         }
         let (a, b) = (pathfinding.config(), formation.config());

@@ -149,7 +149,9 @@ fn a_centralised_learner_trains_and_reads_back() {
     let (policy, header) =
         phalanx_rl::policy_file::load_policy_any(&path, &crate::plain_device()).unwrap();
     assert!(policy.is_centralised() && header.net_config.centralised);
-    // No agent acts with it alone.
+    // No agent acts with it alone, and no decentralised hierarchy stands on it.
+    let err = phalanx_rl::LowLevel::new(policy.clone(), policy.clone()).unwrap_err();
+    assert_eq!(err.to_string(), "the path-finding policy is centralised");
     let err = phalanx_rl::AgentPolicy::new(policy, 0).unwrap_err();
     assert_eq!(err, phalanx_rl::AgentError::Centralised);
 }
