@@ -46,7 +46,7 @@ impl TeamPolicy {
 #[derive(Debug, Clone)]
 pub(crate) enum Team {
     /// The path-finding policy.
-    PathFinding(Policy),
+    PathFinding(Box<Policy>),
     /// The hierarchy.
     Hierarchy(Box<Hierarchy>),
 }
@@ -61,7 +61,7 @@ impl Team {
         n: usize,
     ) -> anyhow::Result<Team> {
         match policy {
-            TeamPolicy::Pathfinding => Ok(Team::PathFinding(policy_for(weights, n)?)),
+            TeamPolicy::Pathfinding => Ok(Team::PathFinding(Box::new(policy_for(weights, n)?))),
             TeamPolicy::Hrl => {
                 let hierarchy = models::load_hierarchy(weights, multiple)
                     .context("loading the hierarchy (the meta policy and its low level)")?;
@@ -101,7 +101,7 @@ impl Team {
         let slot = usize::from(id);
         Ok(match self {
             Team::PathFinding(policy) => {
-                let decider = AgentPolicy::new(policy.clone(), slot)?;
+                let decider = AgentPolicy::new(policy.as_ref().clone(), slot)?;
                 go(&mut Agent::new(id, decider), transport, silence)
             }
             Team::Hierarchy(hierarchy) => {

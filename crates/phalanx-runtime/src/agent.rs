@@ -71,10 +71,13 @@ pub enum AgentFault {
     Policy(#[from] phalanx_rl::AgentError),
 }
 
-/// Messages heard from the other agents (actions, or choices), by `(episode, step)`, each
-/// `(rank, agent, value)`: the first of each agent.
+/// A message heard: `(rank, agent, value)`.
+type Said = (u16, u16, u8);
+
+/// Messages heard from the other agents (actions, or choices), by `(episode, step)`: the
+/// first of each agent.
 #[derive(Debug, Default)]
-pub(crate) struct Heard(BTreeMap<(u32, u32), Vec<(u16, u16, u8)>>);
+pub(crate) struct Heard(BTreeMap<(u32, u32), Vec<Said>>);
 
 impl Heard {
     /// Notes `message` (an action or a choice) unless its agent was heard at its step.
@@ -105,7 +108,7 @@ impl Heard {
     /// (as the team's message is built); `None` until they are all in.
     pub(crate) fn before(&self, episode: u32, step: u32, rank: u16) -> Option<Vec<(usize, u8)>> {
         let heard = self.0.get(&(episode, step));
-        let mut earlier: Vec<(u16, u16, u8)> = heard
+        let mut earlier: Vec<Said> = heard
             .map(|it| it.iter().copied().filter(|&(r, _, _)| r < rank).collect())
             .unwrap_or_default();
         if earlier.len() < usize::from(rank) {

@@ -20,9 +20,16 @@ pub enum WorldFault {
 #[derive(Debug)]
 enum Team {
     /// The path-finding policy: one observation and one action per agent and step.
-    PathFinding { env: TaskEnv, obs: ObsBuffers },
+    PathFinding(Box<Single>),
     /// The hierarchy: choices, then actions, each step.
     Hierarchy(Box<Hier>),
+}
+
+/// The path-finding task's episode and its observations.
+#[derive(Debug)]
+struct Single {
+    env: TaskEnv,
+    obs: ObsBuffers,
 }
 
 /// Where the hierarchy's step is.
@@ -80,7 +87,12 @@ impl World {
         let mut obs = ObsBuffers::new(n, env.obs_shape());
         env.reset_to(instance, &mut obs)?;
         let positions = env.env().positions().to_vec();
-        Ok(World::start(Team::PathFinding { env, obs }, instance, &positions, episode))
+        Ok(World::start(
+            Team::PathFinding(Box::new(Single { env, obs })),
+            instance,
+            &positions,
+            episode,
+        ))
     }
 
     /// Episode `episode` on `instance` for a team of the hierarchy, with the field of view
@@ -150,7 +162,8 @@ impl World {
     fn send_observations(&mut self) {
         let (episode, step) = (self.episode, self.step);
         let messages: Vec<Message> = match &self.team {
-            Team::PathFinding { obs, .. } => {
+            Team::PathFinding(single) => {
+                let obs = &single.obs;
                 observations(episode, step, obs, &obs.order).map(Message::Observation).collect()
             }
             Team::Hierarchy(hier) => {
@@ -224,7 +237,7 @@ impl World {
     fn may_take(&self, agent: usize, action: u8) -> bool {
         let allowed = |mask: &[bool]| mask.get(usize::from(action)).copied().unwrap_or(false);
         match &self.team {
-            Team::PathFinding { obs, .. } => allowed(obs.mask_of(agent)),
+            Team::PathFinding(single) => allowed(single.obs.mask_of(agent)),
             Team::Hierarchy(hier) => match hier.phase {
                 Phase::Choosing | Phase::Leading => usize::from(action) < N_ACTIONS,
                 Phase::Acting => allowed(hier.mask_of(agent)),
@@ -288,7 +301,7 @@ impl World {
             order.iter().find(|&&agent| self.actions[agent].is_none()).map(|&a| a as u16)
         };
         match &self.team {
-            Team::PathFinding { obs, .. } => missing(&obs.order),
+            Team::PathFinding(single) => missing(&single.obs.order),
             Team::Hierarchy(hier) => match hier.phase {
                 Phase::Choosing => {
                     hier.meta.order.iter().find(|&&a| hier.choices[a].is_none()).map(|&a| a as u16)
@@ -306,7 +319,7 @@ impl World {
         let agent = usize::from(self.next_missing()?);
         let (episode, step) = (self.episode, self.step);
         let (rank, message) = match &mut self.team {
-            Team::PathFinding { obs, .. } => (rank_in(&obs.order, agent), None),
+            Team::PathFinding(single) => (rank_in(&single.obs.order, agent), None),
             Team::Hierarchy(hier) => match hier.phase {
                 Phase::Choosing => {
                     let choice = Choice::PathFinding as u8;
@@ -342,7 +355,7 @@ impl World {
     /// Whether every agent's action is in.
     pub fn ready(&self) -> bool {
         let acting = match &self.team {
-            Team::PathFinding { .. } => true,
+            Team::PathFinding(_) => true,
             Team::Hierarchy(hier) => hier.phase == Phase::Acting,
         };
         acting && self.actions.iter().all(Option::is_some)
@@ -358,7 +371,7 @@ impl World {
         self.outbox.clear();
         let joint: Vec<u8> = self.actions.iter().map(|a| a.expect("every action is in")).collect();
         let out = match &mut self.team {
-            Team::PathFinding { env, obs } => env.step(&joint, obs),
+            Team::PathFinding(single) => single.env.step(&joint, &mut single.obs),
             Team::Hierarchy(hier) => {
                 let out = hier.env.step(&joint, &mut hier.meta);
                 hier.phase = Phase::Choosing;
@@ -368,7 +381,7 @@ impl World {
         };
         self.step += 1;
         let positions = match &self.team {
-            Team::PathFinding { env, .. } => env.env().positions(),
+            Team::PathFinding(single) => single.env.env().positions(),
             Team::Hierarchy(hier) => hier.env.env().positions(),
         };
         self.plan.push(positions);
@@ -406,7 +419,7 @@ impl World {
     /// a path-finding team.
     pub fn missed_choices_by_agent(&self) -> &[u64] {
         match &self.team {
-            Team::PathFinding { .. } => &[],
+            Team::PathFinding(_) => &[],
             Team::Hierarchy(hier) => &hier.missed_choices,
         }
     }
