@@ -1,28 +1,23 @@
 //! `phalanx agent`: one agent of a decentralised run as a process of its own
-//! (docs/runtime.md). It loads its policy (the inference part only), joins the world over
-//! Zenoh, and each step waits for its observation and the actions of the agents ranked before
-//! it, decides and publishes its action; nothing else leaves it. It ends with the episode
-//! (exit 0), or when the world is gone or silent (exit 6).
+//! (docs/runtime.md). It loads its policy (the inference part only: the path-finding policy,
+//! or the hierarchy's meta policy and both low-level policies), joins the world over Zenoh,
+//! and each step waits for its observation and the actions of the agents ranked before it,
+//! decides and publishes its action (an agent of the hierarchy first its choice, once the
+//! agents before it in the meta order chose); nothing else leaves it. It ends with the
+//! episode (exit 0), or when the world is gone or silent (exit 6).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
-use phalanx_rl::AgentPolicy;
-use phalanx_runtime::{Agent, RunError, run_agent};
+use phalanx_runtime::RunError;
 use phalanx_zenoh::{
     DEFAULT_AGENT_ENDPOINT, DEFAULT_PREFIX, DEFAULT_WORLD_ENDPOINT, Endpoints, Role, ZenohTransport,
 };
 
-use crate::{run, util};
-
-/// The policies an agent process can run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum AgentPolicyName {
-    /// The path-finding policy.
-    Pathfinding,
-}
+use crate::run::{Team, TeamPolicy};
+use crate::util;
 
 /// Arguments of `phalanx agent`.
 #[derive(Debug, clap::Args)]
@@ -30,12 +25,16 @@ pub(crate) struct AgentCmd {
     /// This agent's index in the instance (0-based).
     #[arg(long)]
     id: u16,
-    /// The policy it runs.
+    /// The policy it runs (the world's --policy).
     #[arg(long, value_enum, default_value = "pathfinding")]
-    policy: AgentPolicyName,
-    /// The policy's directory or file (default: the shipped one).
+    policy: TeamPolicy,
+    /// The policy's directory or file (hrl: the meta policy's; default: the shipped
+    /// models/pathfinding or models/meta).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
+    /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
+    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
+    multiple: f64,
     /// The world's Zenoh endpoint.
     #[arg(long, default_value = DEFAULT_WORLD_ENDPOINT, value_name = "ENDPOINT")]
     connect: String,
@@ -55,10 +54,9 @@ pub(crate) struct AgentCmd {
 
 /// Runs `phalanx agent`.
 pub(crate) fn run(cmd: AgentCmd) -> anyhow::Result<ExitCode> {
-    let AgentPolicyName::Pathfinding = cmd.policy;
-    let policy = run::policy_for(cmd.weights.as_deref(), usize::from(cmd.id) + 1)
-        .with_context(|| format!("agent {}", cmd.id))?;
-    let decider = AgentPolicy::new(policy, usize::from(cmd.id))?;
+    let team =
+        Team::load(cmd.policy, cmd.weights.as_deref(), cmd.multiple, usize::from(cmd.id) + 1)
+            .with_context(|| format!("agent {}", cmd.id))?;
     let mut endpoints = Endpoints::agent(&cmd.listen, &cmd.connect);
     endpoints.prefix = cmd.prefix.clone();
     let mut transport = ZenohTransport::open(Role::Agent(cmd.id), &endpoints)
@@ -72,8 +70,11 @@ pub(crate) fn run(cmd: AgentCmd) -> anyhow::Result<ExitCode> {
         cmd.id,
         n - 1
     );
-    let mut agent = Agent::new(cmd.id, decider);
-    match run_agent(&mut agent, &mut transport, Duration::from_secs_f64(cmd.silence)) {
+    let silence = Duration::from_secs_f64(cmd.silence);
+    match team
+        .run_agent(cmd.id, &mut transport, silence)
+        .with_context(|| format!("agent {}", cmd.id))?
+    {
         Ok(end) => {
             util::print(&format!(
                 "agent {}: episode {} ended after {} steps ({:?})\n",

@@ -1,10 +1,11 @@
-//! `phalanx run`: a decentralised run of the path-finding policy. The world and every agent
-//! exchange only the paper's messages (observations, actions, the end; docs/runtime.md): as
-//! threads of one process over the in-process bus of phalanx-runtime, or with `--processes`
-//! as processes of their own (`phalanx world` and one `phalanx agent` each) over Zenoh on
-//! loopback. The trajectory is scored by the one validator and printed as `phalanx solve`
-//! prints a plan; either way it is the plan of `phalanx solve --planner pathfinding
-//! --rollouts 1`.
+//! `phalanx run`: a decentralised run of the path-finding policy or of the hierarchy
+//! (`--policy hrl`). The world and every agent exchange only the paper's messages
+//! (observations, actions, the end, and for the hierarchy the choices and the formation
+//! frames; docs/runtime.md): as threads of one process over the in-process bus of
+//! phalanx-runtime, or with `--processes` as processes of their own (`phalanx world` and one
+//! `phalanx agent` each) over Zenoh on loopback. The trajectory is scored by the one validator
+//! and printed as `phalanx solve` prints a plan; either way it is the plan of `phalanx solve
+//! --planner pathfinding --rollouts 1` (or `--planner hrl`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, Stdio};
@@ -16,10 +17,100 @@ use phalanx_io::{NamedInstance, PlanStats};
 use phalanx_msg::{End, EndReason};
 use phalanx_plan::SolveSummary;
 use phalanx_plan::planner::Outcome;
-use phalanx_rl::{AgentPolicy, Policy, models};
-use phalanx_runtime::{Agent, World, inproc, run_agent, run_world};
+use phalanx_rl::{AgentHierarchy, AgentPolicy, Hierarchy, Policy, models};
+use phalanx_runtime::{Agent, HierAgent, Machine, World, inproc, run_agent, run_world};
 
 use crate::util;
+
+/// The policies a decentralised team can run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum TeamPolicy {
+    /// The path-finding policy.
+    Pathfinding,
+    /// The hierarchy: the meta policy choosing each agent's low-level policy every step.
+    Hrl,
+}
+
+impl TeamPolicy {
+    /// Its name on the command line.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            TeamPolicy::Pathfinding => "pathfinding",
+            TeamPolicy::Hrl => "hrl",
+        }
+    }
+}
+
+/// What an agent decides with: the path-finding policy, or the hierarchy (its meta policy
+/// and both low-level policies).
+#[derive(Debug, Clone)]
+pub(crate) enum Team {
+    /// The path-finding policy.
+    PathFinding(Box<Policy>),
+    /// The hierarchy.
+    Hierarchy(Box<Hierarchy>),
+}
+
+impl Team {
+    /// The policy `policy` of `weights` (the meta policy's, for the hierarchy; default: the
+    /// shipped one), run at `multiple` × w_f for the hierarchy, for a team of `n` agents.
+    pub(crate) fn load(
+        policy: TeamPolicy,
+        weights: Option<&Path>,
+        multiple: f64,
+        n: usize,
+    ) -> anyhow::Result<Team> {
+        match policy {
+            TeamPolicy::Pathfinding => Ok(Team::PathFinding(Box::new(policy_for(weights, n)?))),
+            TeamPolicy::Hrl => {
+                let hierarchy = models::load_hierarchy(weights, multiple)
+                    .context("loading the hierarchy (the meta policy and its low level)")?;
+                let slots = hierarchy.n_agents_max();
+                anyhow::ensure!(
+                    n <= slots,
+                    "a team of {n} agents, the hierarchy takes at most {slots}"
+                );
+                Ok(Team::Hierarchy(Box::new(hierarchy)))
+            }
+        }
+    }
+
+    /// The field of view its policies read.
+    pub(crate) fn fov(&self) -> u32 {
+        match self {
+            Team::PathFinding(policy) => policy.config().fov as u32,
+            Team::Hierarchy(hierarchy) => hierarchy.low.fov() as u32,
+        }
+    }
+
+    /// Runs agent `id` over `transport` until the episode ends (see
+    /// [`phalanx_runtime::run_agent`]).
+    pub(crate) fn run_agent(
+        &self,
+        id: u16,
+        transport: &mut impl phalanx_runtime::Transport,
+        silence: Duration,
+    ) -> anyhow::Result<Result<End, phalanx_runtime::RunError>> {
+        fn go(
+            agent: &mut impl Machine,
+            transport: &mut impl phalanx_runtime::Transport,
+            silence: Duration,
+        ) -> Result<End, phalanx_runtime::RunError> {
+            run_agent(agent, transport, silence)
+        }
+        let slot = usize::from(id);
+        Ok(match self {
+            Team::PathFinding(policy) => {
+                let decider = AgentPolicy::new(policy.as_ref().clone(), slot)?;
+                go(&mut Agent::new(id, decider), transport, silence)
+            }
+            Team::Hierarchy(hierarchy) => {
+                let decider = AgentHierarchy::new(hierarchy, slot)?;
+                go(&mut HierAgent::new(id, decider), transport, silence)
+            }
+        })
+    }
+}
 
 /// Arguments of `phalanx run`.
 #[derive(Debug, clap::Args)]
@@ -29,9 +120,16 @@ pub(crate) struct RunCmd {
     /// Agents of a .scen file: its first N (default all).
     #[arg(long, value_name = "N")]
     agents: Option<usize>,
-    /// The path-finding policy's directory or file (default: the shipped one).
+    /// The policy the agents run.
+    #[arg(long, value_enum, default_value = "pathfinding")]
+    policy: TeamPolicy,
+    /// The policy's directory or file (hrl: the meta policy's; default: the shipped
+    /// models/pathfinding or models/meta).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
+    /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
+    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
+    multiple: f64,
     /// How long the world waits for an action before the first agent not in waits this
     /// step, milliseconds.
     #[arg(long, default_value_t = 2000, value_name = "MS")]
@@ -65,18 +163,26 @@ pub(crate) fn policy_for(weights: Option<&Path>, n: usize) -> anyhow::Result<Pol
     Ok(policy)
 }
 
-/// The world of `instance` for a policy of field of view `fov`, with the step limit of
-/// docs/spec.md §4 (three times the map side).
-pub(crate) fn world_for(named: &NamedInstance, path: &Path, fov: u32) -> anyhow::Result<World> {
+/// The world of `instance` for a team of `policy` of field of view `fov`, with the step
+/// limit of docs/spec.md §4 (three times the map side).
+pub(crate) fn world_for(
+    named: &NamedInstance,
+    path: &Path,
+    policy: TeamPolicy,
+    fov: u32,
+) -> anyhow::Result<World> {
     let instance = &named.instance;
     let config =
         EnvConfig { fov, step_limit: Some(3 * instance.grid().side()), ..EnvConfig::default() };
-    World::new(instance, config, 0)
-        .with_context(|| format!("{}: the world refuses the instance", path.display()))
+    match policy {
+        TeamPolicy::Pathfinding => World::new(instance, config, 0),
+        TeamPolicy::Hrl => World::hierarchy(instance, config, 0),
+    }
+    .with_context(|| format!("{}: the world refuses the instance", path.display()))
 }
 
 /// Scores the world's trajectory with the one validator and prints it as `phalanx solve`
-/// does, with the actions missed and stale; writes the plan to `output` when it reached the
+/// does, with the actions missed and stale (and for the hierarchy the choices missed); writes the plan to `output` when it reached the
 /// goals. Exit 0 when it did, 1 otherwise.
 pub(crate) fn report(
     named: &NamedInstance,
@@ -92,7 +198,9 @@ pub(crate) fn report(
         EndReason::Done => Ok(plan),
         EndReason::StepLimit | EndReason::Stopped => Err(Outcome::StepLimit),
     };
-    let summary = SolveSummary::of(instance, "pathfinding (decentralised)", result, runtime_s);
+    let planner = if world.is_hierarchy() { "hrl" } else { "pathfinding" };
+    let planner = format!("{planner} (decentralised)");
+    let summary = SolveSummary::of(instance, &planner, result, runtime_s);
     if let (Some(path), Outcome::Solved) = (output, summary.outcome) {
         let stats = PlanStats::of(plan, runtime_s);
         util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
@@ -102,15 +210,27 @@ pub(crate) fn report(
         value["missed_actions"] = world.missed().into();
         value["missed_by_agent"] = world.missed_by_agent().into();
         value["stale_actions"] = world.stale().into();
+        if world.is_hierarchy() {
+            value["missed_choices"] = world.missed_choices().into();
+            value["missed_choices_by_agent"] = world.missed_choices_by_agent().into();
+        }
         util::print_json(&value)?;
     } else {
-        util::print(&format!(
+        let mut text = format!(
             "{}\nmissed_actions: {}\nmissed_by_agent: {:?}\nstale_actions: {}\n",
             summary.to_text(),
             world.missed(),
             world.missed_by_agent(),
             world.stale()
-        ))?;
+        );
+        if world.is_hierarchy() {
+            text += &format!(
+                "missed_choices: {}\nmissed_choices_by_agent: {:?}\n",
+                world.missed_choices(),
+                world.missed_choices_by_agent()
+            );
+        }
+        util::print(&text)?;
     }
     Ok(if summary.outcome == Outcome::Solved { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }
@@ -120,11 +240,11 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let n = named.instance.n_agents();
-    let policy = policy_for(cmd.weights.as_deref(), n)?;
+    let team = Team::load(cmd.policy, cmd.weights.as_deref(), cmd.multiple, n)?;
     if cmd.processes {
-        return processes(&cmd, n, policy.config().fov as u32);
+        return processes(&cmd, n, team.fov());
     }
-    let mut world = world_for(&named, &cmd.instance, policy.config().fov as u32)?;
+    let mut world = world_for(&named, &cmd.instance, cmd.policy, team.fov())?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();
@@ -133,10 +253,9 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
             .into_iter()
             .enumerate()
             .map(|(id, mut end)| {
-                let decider = AgentPolicy::new(policy.clone(), id);
+                let team = &team;
                 scope.spawn(move || -> anyhow::Result<()> {
-                    let mut agent = Agent::new(id as u16, decider?);
-                    run_agent(&mut agent, &mut end, 10 * step_timeout)
+                    team.run_agent(id as u16, &mut end, 10 * step_timeout)?
                         .with_context(|| format!("agent {id}"))?;
                     Ok(())
                 })
@@ -166,6 +285,7 @@ fn processes(cmd: &RunCmd, n: usize, fov: u32) -> anyhow::Result<ExitCode> {
     let mut world = Command::new(&exe);
     world.arg("world").arg(&cmd.instance).args(["--listen", &endpoint, "--prefix", &prefix]);
     world.args(["--fov", &fov.to_string(), "--step-timeout", &cmd.step_timeout.to_string()]);
+    world.args(["--policy", cmd.policy.name()]);
     if let Some(agents) = cmd.agents {
         world.args(["--agents", &agents.to_string()]);
     }
@@ -180,6 +300,7 @@ fn processes(cmd: &RunCmd, n: usize, fov: u32) -> anyhow::Result<ExitCode> {
     for id in 0..n {
         let mut agent = Command::new(&exe);
         agent.args(["agent", "--id", &id.to_string(), "--connect", &endpoint, "--prefix", &prefix]);
+        agent.args(["--policy", cmd.policy.name(), "--multiple", &cmd.multiple.to_string()]);
         if let Some(weights) = &cmd.weights {
             agent.arg("--weights").arg(weights);
         }

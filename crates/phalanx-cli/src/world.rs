@@ -3,7 +3,9 @@
 //! agent process of the team is ready, then each step publishes each agent's observation and
 //! rank, collects the joint action (an agent that does not answer within the step timeout, or
 //! whose process is gone, waits), steps, and at the end prints the one validator's metrics
-//! and writes the trajectory as a plan.
+//! and writes the trajectory as a plan. With `--policy hrl` the team is the hierarchy's: each
+//! step the world collects the agents' choices of low-level policy first, then hands out the
+//! formation frames (docs/runtime.md); the agents must run the same policy.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -13,7 +15,8 @@ use anyhow::Context as _;
 use phalanx_runtime::run_world_paced;
 use phalanx_zenoh::{DEFAULT_PREFIX, DEFAULT_WORLD_ENDPOINT, Endpoints, Role, ZenohTransport};
 
-use crate::{run, util};
+use crate::run::{self, TeamPolicy};
+use crate::util;
 
 /// Arguments of `phalanx world`.
 #[derive(Debug, clap::Args)]
@@ -29,6 +32,9 @@ pub(crate) struct WorldCmd {
     /// The run's key prefix (runs with different prefixes on one network do not mix).
     #[arg(long, default_value = DEFAULT_PREFIX)]
     prefix: String,
+    /// The policy the agents run: the world serves its phases (the agents' --policy).
+    #[arg(long, value_enum, default_value = "pathfinding")]
+    policy: TeamPolicy,
     /// The agents' field of view (their policy's).
     #[arg(long, default_value_t = 9)]
     fov: u32,
@@ -55,7 +61,7 @@ pub(crate) struct WorldCmd {
 pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
-    let mut world = run::world_for(&named, &cmd.instance, cmd.fov)?;
+    let mut world = run::world_for(&named, &cmd.instance, cmd.policy, cmd.fov)?;
     let n = u16::try_from(named.instance.n_agents()).context("too many agents")?;
     let mut endpoints = Endpoints::world(&cmd.listen);
     endpoints.prefix = cmd.prefix.clone();

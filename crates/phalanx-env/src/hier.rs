@@ -25,7 +25,7 @@
 //! 4. [`HierEnv::step`] applies the joint action; the reward is the meta task's (Table I:
 //!    collision −50, +1 a move towards the goal, −`w_f · L_f` per agent).
 
-use phalanx_core::{Action, Instance};
+use phalanx_core::{Action, Cell, Instance};
 
 use crate::marl::{ObsBuffers, ObsShape, StepOut};
 use crate::obs::{N_ACTIONS, VECTOR_LEN};
@@ -52,6 +52,47 @@ impl Choice {
             1 => Some(Choice::Formation),
             _ => None,
         }
+    }
+}
+
+/// Message-aware clipping for an agent on cell `here` ([`HierEnv::clip_claimed`]): removes
+/// from `mask` the moves into a cell that an earlier agent's move `(cell, action index)` of
+/// `earlier` leads to, or into the cell of an earlier agent that moves into `here`. Waiting
+/// stays as it was. Only the differences between cells matter, so an agent that knows where
+/// its team mates stand relative to it clips on relative cells (`here` the origin) exactly
+/// as on the grid's; a team mate further than two cells (Manhattan) cannot take a cell from
+/// it.
+///
+/// # Panics
+/// If an action index is above 4 or the mask is not five long.
+pub fn clip_claimed(
+    here: Cell,
+    earlier: impl Iterator<Item = (Cell, u8)> + Clone,
+    mask: &mut [bool],
+) {
+    assert_eq!(mask.len(), N_ACTIONS, "one flag per action");
+    let next = |cell: Cell, action: u8| {
+        Action::from_index(usize::from(action)).expect("action index below 5").apply(cell)
+    };
+    for (index, allowed) in mask.iter_mut().enumerate() {
+        let action = Action::from_index(index).expect("five actions");
+        if !*allowed || action == Action::Wait {
+            continue;
+        }
+        let target = action.apply(here);
+        *allowed = !earlier.clone().any(|(cell, action)| {
+            let to = next(cell, action);
+            to == target || (to == here && cell == target)
+        });
+    }
+}
+
+/// The meta observation's vector of an agent: its path-finding vector, followed, for a
+/// weight-conditioned meta policy, by the formation-weight multiple.
+pub fn meta_vector(pathfinding: &[f32], multiple: Option<f32>, out: &mut [f32]) {
+    out[..pathfinding.len()].copy_from_slice(pathfinding);
+    if let Some(multiple) = multiple {
+        out[pathfinding.len()] = multiple;
     }
 }
 
@@ -195,25 +236,9 @@ impl HierEnv {
     /// # Panics
     /// If an action index is above 4 or the mask is not five long.
     pub fn clip_claimed(&self, agent: usize, earlier: &[usize], actions: &[u8], mask: &mut [bool]) {
-        assert_eq!(mask.len(), N_ACTIONS, "one flag per action");
         let positions = self.env.positions();
-        let here = positions[agent];
-        let next = |i: usize| {
-            Action::from_index(usize::from(actions[i]))
-                .expect("action index below 5")
-                .apply(positions[i])
-        };
-        for (index, allowed) in mask.iter_mut().enumerate() {
-            let action = Action::from_index(index).expect("five actions");
-            if !*allowed || action == Action::Wait {
-                continue;
-            }
-            let target = action.apply(here);
-            *allowed = !earlier.iter().any(|&i| {
-                let to = next(i);
-                to == target || (to == here && positions[i] == target)
-            });
-        }
+        let moves = earlier.iter().map(|&i| (positions[i], actions[i]));
+        clip_claimed(positions[agent], moves, mask);
     }
 
     /// Writes the meta observation of the current state and the path-finding observation.
@@ -223,11 +248,9 @@ impl HierEnv {
         self.env.observe_clipped(&mut self.pathfinding, Clip::PathFinding);
         meta.grid.copy_from_slice(&self.pathfinding.grid);
         let width = meta.shape.env_vec;
+        let multiple = self.weight_input.then_some(self.multiple);
         for (agent, out) in meta.vec.chunks_exact_mut(width).enumerate() {
-            out[..VECTOR_LEN].copy_from_slice(self.pathfinding.vec_of(agent));
-            if self.weight_input {
-                out[VECTOR_LEN] = self.multiple;
-            }
+            meta_vector(self.pathfinding.vec_of(agent), multiple, out);
         }
         meta.action_mask.fill(true);
         let order = self.env.begin_turns(LeaderRule::PathFinding);

@@ -43,7 +43,7 @@ mod task;
 pub use config::{Clip, EnvConfig, EnvError, LeaderRule, Task};
 pub use env::{Env, MAX_AGENTS, Step, StepInfo};
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
-pub use hier::{Choice, HierEnv};
+pub use hier::{Choice, HierEnv, clip_claimed, meta_vector};
 pub use marl::{MarlEnv, ObsBuffers, ObsShape, StepOut, step_lockstep};
 pub use phalanx_gen::GenConfig;
 pub use pool::{EvalMaps, PoolConfig, TrainPool, eval_seed, train_seed};

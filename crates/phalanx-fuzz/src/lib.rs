@@ -3,7 +3,8 @@
 //! plans, and the decoder of the messages agent processes exchange. Each body takes arbitrary
 //! bytes and must return without panicking; where the input is accepted it also checks a
 //! property (a written file reads back to the same value, the metrics of a valid plan are
-//! consistent, a decoded message encodes to the same bytes).
+//! consistent, a decoded message encodes to the same bytes, and the agents' machines take it
+//! without panicking).
 //!
 //! The bodies live here, not in `fuzz/`, so that the workspace tests replay the committed
 //! corpora and crash inputs (`tests/corpus.rs`) without libFuzzer, on the stable toolchain
@@ -14,7 +15,11 @@ use std::io::Write as _;
 
 use burn::tensor::Device;
 use phalanx_core::{Cell, Grid, Instance, Plan, PlanMetrics, validate};
+use phalanx_env::Choice;
 use phalanx_io::{MovingAiMap, Scenario, YamlInstance, YamlPlan, instance_from_scen};
+use phalanx_msg::{Message, Observation};
+use phalanx_rl::AgentError;
+use phalanx_runtime::{Agent, AgentFault, Decide, DecideHier, HierAgent};
 
 /// A fuzz target's body.
 pub type Body = fn(&[u8]);
@@ -180,9 +185,74 @@ pub fn checkpoint(data: &[u8]) {
     let _ = phalanx_rl::Learner::load(file.path(), &Device::flex().autodiff());
 }
 
-/// A message of a decentralised run: decoded, and when accepted encoded to the same bytes.
+/// A message of a decentralised run: decoded, and when accepted encoded to the same bytes
+/// and handed to an agent of either kind (a path-finding agent and one of the hierarchy,
+/// deciding by a fixed rule): each refuses it or takes it, never panics. A frame is handed
+/// to the hierarchy's agent after the meta observation of its step and an action of each
+/// team mate near it, so that its mask is clipped by moves from arbitrary cells.
 pub fn message(data: &[u8]) {
-    if let Ok(message) = phalanx_msg::decode(data) {
-        assert_eq!(message.encode(), data, "a decoded message encodes to other bytes");
+    let Ok(message) = phalanx_msg::decode(data) else { return };
+    assert_eq!(message.encode(), data, "a decoded message encodes to other bytes");
+    let id = match &message {
+        Message::Observation(o) | Message::Meta(o) => o.agent,
+        Message::Frame(f) => f.observation.agent,
+        Message::Action(a) | Message::Choice(a) => a.agent.wrapping_add(1),
+        Message::End(_) => 0,
+    };
+    let _ = Agent::new(id, FirstAllowed).handle(message.clone());
+    let mut agent = HierAgent::new(id, FirstAllowed);
+    if let Message::Frame(frame) = &message {
+        let obs = &frame.observation;
+        let meta = Observation { rank: 0, ..obs.clone() };
+        let _ = agent.handle(Message::Meta(meta));
+        for (rank, near) in frame.near.iter().enumerate() {
+            let action = phalanx_msg::Action {
+                episode: obs.episode,
+                step: obs.step,
+                agent: near.agent,
+                rank: rank as u16,
+                action: (near.dx.unsigned_abs() + near.dy.unsigned_abs()) % 6,
+            };
+            let _ = agent.handle(Message::Action(action));
+        }
+    }
+    let _ = agent.handle(message);
+}
+
+/// A policy that takes the first action its mask allows, and chooses path finding.
+struct FirstAllowed;
+
+impl FirstAllowed {
+    fn first(mask: &[bool]) -> Result<u8, AgentFault> {
+        let first = mask.iter().position(|&ok| ok).ok_or(AgentError::NoAction)?;
+        Ok(u8::try_from(first).unwrap_or(u8::MAX))
+    }
+}
+
+impl Decide for FirstAllowed {
+    fn reset(&mut self) {}
+
+    fn decide(&mut self, obs: &Observation, _: &[(usize, u8)]) -> Result<u8, AgentFault> {
+        FirstAllowed::first(&obs.mask)
+    }
+}
+
+impl DecideHier for FirstAllowed {
+    fn reset(&mut self) {}
+
+    fn observe(&mut self, _: &Observation) -> Result<(), AgentFault> {
+        Ok(())
+    }
+
+    fn choose(&mut self, _: &[(usize, u8)]) -> Result<Choice, AgentFault> {
+        Ok(Choice::PathFinding)
+    }
+
+    fn observe_frame(&mut self, _: &Observation) -> Result<(), AgentFault> {
+        Ok(())
+    }
+
+    fn act(&mut self, _: Choice, mask: &[bool], _: &[(usize, u8)]) -> Result<u8, AgentFault> {
+        FirstAllowed::first(mask)
     }
 }

@@ -43,3 +43,15 @@ fn corpora_and_crash_inputs_replay_without_a_panic() {
     }
     assert!(replayed >= phalanx_fuzz::TARGETS.len());
 }
+
+#[test]
+fn the_message_corpus_holds_every_kind_of_message() {
+    let mut kinds = std::collections::BTreeSet::new();
+    for file in inputs(&fuzz_dir().join("corpus").join("message")) {
+        let data = std::fs::read(&file).expect("reading a fuzz input");
+        if phalanx_msg::decode(&data).is_ok() {
+            kinds.insert(data[3]);
+        }
+    }
+    assert_eq!(kinds.into_iter().collect::<Vec<u8>>(), [1, 2, 3, 4, 5, 6], "kinds decoded");
+}

@@ -1,6 +1,6 @@
 //! The messages of a decentralised run (docs/runtime.md) and their wire form, with no IO.
 //!
-//! Three kinds travel, and nothing else:
+//! These kinds travel, and nothing else:
 //!
 //! - [`Observation`], world → one agent: its own view this step (the observation the
 //!   environment builds for it: the `C × F × F` grid, the goal vector, its allowed actions)
@@ -8,15 +8,28 @@
 //! - [`Action`], agent → every agent: `(episode, step, agent, rank, action)`, the few bits
 //!   of the paper's action messages; an agent acts once it holds the actions of every agent
 //!   ranked before it in this step, and the world steps once it holds every agent's;
-//! - [`End`], world → every agent: the episode is over, and why.
+//! - [`End`], world → every agent: the episode is over, and why;
+//!
+//! and for a team of the hierarchy (docs/runtime.md), whose step has two phases:
+//!
+//! - [`Message::Meta`], world → one agent: an [`Observation`] (the path-finding observation,
+//!   which the meta policy reads too) whose rank is the agent's in the meta order;
+//! - [`Message::Choice`], agent → every agent: an [`Action`] whose action is the agent's meta
+//!   choice (0 path finding, 1 formation) and whose rank is its meta rank;
+//! - [`Frame`], world → one agent: its formation-frame observation, its rank in the step's
+//!   low-level order, the low-level policy it runs and the cells of its team mates within two
+//!   cells of it (those an earlier agent's move can take from it).
 //!
 //! Order across agents is the application's: a message carries its episode, step and rank.
 //!
 //! Wire form, little-endian, versioned: `b"PX"`, the version ([`VERSION`]), the kind (1
-//! observation, 2 action, 3 end), then the kind's fields in the order their structs list
-//! them; a list is a `u16` count and its items (`f32`s; the mask as one byte per action, 0
-//! or 1). An action is 17 bytes. [`decode`] refuses a short, long or malformed message with
-//! a [`WireError`] naming the field.
+//! observation, 2 action, 3 end, 4 meta observation, 5 choice, 6 frame), then the kind's
+//! fields in the order their structs list them (a meta observation is laid out as an
+//! observation, a choice as an action, a frame as an observation followed by the choice and
+//! the team mates near); a list is a `u16` count and its items (`f32`s; the mask as one byte
+//! per action, 0 or 1; a team mate near as its `u16` agent and its `i8` column and row
+//! offsets). An action or a choice is 17 bytes. [`decode`] refuses a short, long or
+//! malformed message with a [`WireError`] naming the field.
 
 /// The wire format's version: a message of another version is refused.
 pub const VERSION: u8 = 1;
@@ -60,6 +73,35 @@ pub struct Action {
     pub action: u8,
 }
 
+/// World → agent, the hierarchy's second phase: the agent's formation-frame observation at a
+/// step (the frame anchored at the leader's next cell), with its rank in the step's low-level
+/// order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// The formation policy's observation; its rank is the agent's in the low-level order.
+    pub observation: Observation,
+    /// The low-level policy the world runs the agent on this step (0 path finding, 1
+    /// formation): its own choice, or path finding when its choice did not come in time.
+    pub choice: u8,
+    /// The team mates within two cells (Manhattan) of the agent, ascending by agent.
+    pub near: Vec<Near>,
+}
+
+/// A team mate near an agent: where it stands relative to the agent's cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Near {
+    /// The team mate.
+    pub agent: u16,
+    /// Its column minus the agent's.
+    pub dx: i8,
+    /// Its row minus the agent's.
+    pub dy: i8,
+}
+
+/// How far (Manhattan) a team mate of a [`Frame`] may stand: the cells from which one move
+/// reaches a cell next to the agent's.
+pub const NEAR: u32 = 2;
+
 /// Why an episode ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EndReason {
@@ -91,6 +133,12 @@ pub enum Message {
     Action(Action),
     /// The end of an episode.
     End(End),
+    /// The hierarchy's first phase: the path-finding observation, ranked in the meta order.
+    Meta(Observation),
+    /// An agent's meta choice (0 path finding, 1 formation), laid out as an action.
+    Choice(Action),
+    /// The hierarchy's second phase: the formation-frame observation.
+    Frame(Frame),
 }
 
 /// Why bytes are not a message.
@@ -140,30 +188,11 @@ impl Message {
         match self {
             Message::Observation(o) => {
                 out.push(1);
-                for v in [o.episode, o.step] {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-                for v in [o.agent, o.rank, o.n_agents] {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-                for list in [&o.grid, &o.vector] {
-                    out.extend_from_slice(&(list.len() as u16).to_le_bytes());
-                    for x in list.iter() {
-                        out.extend_from_slice(&x.to_le_bytes());
-                    }
-                }
-                out.extend_from_slice(&(o.mask.len() as u16).to_le_bytes());
-                out.extend(o.mask.iter().map(|&ok| u8::from(ok)));
+                encode_observation(o, &mut out);
             }
             Message::Action(a) => {
                 out.push(2);
-                for v in [a.episode, a.step] {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-                for v in [a.agent, a.rank] {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-                out.push(a.action);
+                encode_action(a, &mut out);
             }
             Message::End(e) => {
                 out.push(3);
@@ -176,9 +205,55 @@ impl Message {
                     EndReason::Stopped => 2,
                 });
             }
+            Message::Meta(o) => {
+                out.push(4);
+                encode_observation(o, &mut out);
+            }
+            Message::Choice(c) => {
+                out.push(5);
+                encode_action(c, &mut out);
+            }
+            Message::Frame(f) => {
+                out.push(6);
+                encode_observation(&f.observation, &mut out);
+                out.push(f.choice);
+                out.extend_from_slice(&(f.near.len() as u16).to_le_bytes());
+                for near in &f.near {
+                    out.extend_from_slice(&near.agent.to_le_bytes());
+                    out.extend(near.dx.to_le_bytes());
+                    out.extend(near.dy.to_le_bytes());
+                }
+            }
         }
         out
     }
+}
+
+fn encode_observation(o: &Observation, out: &mut Vec<u8>) {
+    for v in [o.episode, o.step] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [o.agent, o.rank, o.n_agents] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for list in [&o.grid, &o.vector] {
+        out.extend_from_slice(&(list.len() as u16).to_le_bytes());
+        for x in list.iter() {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    out.extend_from_slice(&(o.mask.len() as u16).to_le_bytes());
+    out.extend(o.mask.iter().map(|&ok| u8::from(ok)));
+}
+
+fn encode_action(a: &Action, out: &mut Vec<u8>) {
+    for v in [a.episode, a.step] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [a.agent, a.rank] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.push(a.action);
 }
 
 /// Reads fields off the front of a message.
@@ -213,6 +288,66 @@ impl<'a> Reader<'a> {
         let bytes = self.take(field, 4 * n)?;
         Ok(bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
     }
+
+    fn observation(&mut self) -> Result<Observation, WireError> {
+        let (episode, step) = (self.u32("episode")?, self.u32("step")?);
+        let (agent, rank, n_agents) =
+            (self.u16("agent")?, self.u16("rank")?, self.u16("n_agents")?);
+        if agent >= n_agents || rank >= n_agents {
+            let (field, value) = if agent >= n_agents { ("agent", agent) } else { ("rank", rank) };
+            return Err(WireError::Value { field, value: u64::from(value) });
+        }
+        let grid = self.floats("grid")?;
+        let vector = self.floats("vector")?;
+        let n = usize::from(self.u16("mask")?);
+        let mask = self
+            .take("mask", n)?
+            .iter()
+            .map(|&b| match b {
+                0 => Ok(false),
+                1 => Ok(true),
+                other => Err(WireError::Value { field: "mask", value: u64::from(other) }),
+            })
+            .collect::<Result<Vec<bool>, _>>()?;
+        Ok(Observation { episode, step, agent, rank, n_agents, grid, vector, mask })
+    }
+
+    fn action(&mut self) -> Result<Action, WireError> {
+        Ok(Action {
+            episode: self.u32("episode")?,
+            step: self.u32("step")?,
+            agent: self.u16("agent")?,
+            rank: self.u16("rank")?,
+            action: self.u8("action")?,
+        })
+    }
+
+    fn frame(&mut self) -> Result<Frame, WireError> {
+        let observation = self.observation()?;
+        let choice = self.u8("choice")?;
+        if choice > 1 {
+            return Err(WireError::Value { field: "choice", value: u64::from(choice) });
+        }
+        let n = usize::from(self.u16("near")?);
+        let mut near = Vec::with_capacity(n.min(self.0.len() / 4));
+        for _ in 0..n {
+            let agent = self.u16("near")?;
+            let dx = i8::from_le_bytes([self.u8("near")?]);
+            let dy = i8::from_le_bytes([self.u8("near")?]);
+            if agent >= observation.n_agents || agent == observation.agent {
+                return Err(WireError::Value { field: "near agent", value: u64::from(agent) });
+            }
+            let distance = u32::from(dx.unsigned_abs()) + u32::from(dy.unsigned_abs());
+            if distance > NEAR {
+                return Err(WireError::Value {
+                    field: "near distance",
+                    value: u64::from(distance),
+                });
+            }
+            near.push(Near { agent, dx, dy });
+        }
+        Ok(Frame { observation, choice, near })
+    }
 }
 
 /// The message of `bytes`.
@@ -230,44 +365,8 @@ pub fn decode(bytes: &[u8]) -> Result<Message, WireError> {
         return Err(WireError::Version { found: version });
     }
     let message = match r.u8("kind")? {
-        1 => {
-            let (episode, step) = (r.u32("episode")?, r.u32("step")?);
-            let (agent, rank, n_agents) = (r.u16("agent")?, r.u16("rank")?, r.u16("n_agents")?);
-            if agent >= n_agents || rank >= n_agents {
-                let (field, value) =
-                    if agent >= n_agents { ("agent", agent) } else { ("rank", rank) };
-                return Err(WireError::Value { field, value: u64::from(value) });
-            }
-            let grid = r.floats("grid")?;
-            let vector = r.floats("vector")?;
-            let n = usize::from(r.u16("mask")?);
-            let mask = r
-                .take("mask", n)?
-                .iter()
-                .map(|&b| match b {
-                    0 => Ok(false),
-                    1 => Ok(true),
-                    other => Err(WireError::Value { field: "mask", value: u64::from(other) }),
-                })
-                .collect::<Result<Vec<bool>, _>>()?;
-            Message::Observation(Observation {
-                episode,
-                step,
-                agent,
-                rank,
-                n_agents,
-                grid,
-                vector,
-                mask,
-            })
-        }
-        2 => Message::Action(Action {
-            episode: r.u32("episode")?,
-            step: r.u32("step")?,
-            agent: r.u16("agent")?,
-            rank: r.u16("rank")?,
-            action: r.u8("action")?,
-        }),
+        1 => Message::Observation(r.observation()?),
+        2 => Message::Action(r.action()?),
         3 => {
             let (episode, steps) = (r.u32("episode")?, r.u32("steps")?);
             let reason = match r.u8("reason")? {
@@ -278,6 +377,15 @@ pub fn decode(bytes: &[u8]) -> Result<Message, WireError> {
             };
             Message::End(End { episode, steps, reason })
         }
+        4 => Message::Meta(r.observation()?),
+        5 => {
+            let choice = r.action()?;
+            if choice.action > 1 {
+                return Err(WireError::Value { field: "choice", value: u64::from(choice.action) });
+            }
+            Message::Choice(choice)
+        }
+        6 => Message::Frame(r.frame()?),
         kind => return Err(WireError::Kind(kind)),
     };
     if !r.0.is_empty() {

@@ -3,9 +3,16 @@
 //! agents ranked before it this step as its message. The network is the same as
 //! [`Policy`]'s; an [`AgentPolicy`] per agent gives, step by step, the actions the batched
 //! [`Policy::act`] gives the team (greedy; tested in `tests/it/agent.rs`).
+//!
+//! [`AgentHierarchy`] is one agent's side of the whole hierarchy ([`Hierarchy`]): the meta
+//! policy and both low-level policies, each an [`AgentPolicy`] with its own recurrent state;
+//! an agent per team member, driven through the phases of the hierarchy's step, gives the
+//! trajectory of the batched hierarchy (tested over the in-process bus in phalanx-runtime).
 
 use burn::tensor::{Tensor, TensorData};
+use phalanx_env::Choice;
 
+use crate::hierarchy::{Hierarchy, MetaPolicy};
 use crate::net::{masked_argmax, tensor3, to_vec};
 use crate::policy::Policy;
 
@@ -45,6 +52,12 @@ pub enum AgentError {
     /// agent can act with it alone.
     #[error("the network is centralised: it acts for whole teams only")]
     Centralised,
+    /// A scripted meta policy reads the whole team's state: it does not decide per agent.
+    #[error("a scripted meta policy does not run as one agent's policy")]
+    Scripted,
+    /// A head asked for before the recurrent pass of the step it reads.
+    #[error("no {0} observation this step")]
+    NotObserved(&'static str),
 }
 
 /// One agent of a team acting with a policy's network.
@@ -110,15 +123,8 @@ impl AgentPolicy {
     /// # Errors
     /// Inputs of other sizes than the network's.
     pub fn observe(&mut self, grid: &[f32], vector: &[f32]) -> Result<Features, AgentError> {
+        self.check_inputs(grid, vector)?;
         let cfg = self.policy.config().clone();
-        let grid_len = cfg.channels * cfg.fov * cfg.fov;
-        for (what, found, expected) in
-            [("grid", grid.len(), grid_len), ("vector", vector.len(), cfg.env_vec)]
-        {
-            if found != expected {
-                return Err(AgentError::Size { what, found, expected });
-            }
-        }
         let mut vec = vec![0.0_f32; cfg.vec_dim()];
         vec[..cfg.env_vec].copy_from_slice(vector);
         vec[cfg.env_vec + self.agent] = 1.0;
@@ -170,6 +176,20 @@ impl AgentPolicy {
         Ok(message)
     }
 
+    /// Refuses a grid or vector of another size than the network's.
+    fn check_inputs(&self, grid: &[f32], vector: &[f32]) -> Result<(), AgentError> {
+        let cfg = self.policy.config();
+        let grid_len = cfg.channels * cfg.fov * cfg.fov;
+        for (what, found, expected) in
+            [("grid", grid.len(), grid_len), ("vector", vector.len(), cfg.env_vec)]
+        {
+            if found != expected {
+                return Err(AgentError::Size { what, found, expected });
+            }
+        }
+        Ok(())
+    }
+
     /// Refuses a mask of another size than the network's actions, or one that allows nothing.
     fn check_mask(&self, mask: &[bool]) -> Result<(), AgentError> {
         let expected = self.policy.config().n_actions;
@@ -187,3 +207,123 @@ impl AgentPolicy {
 /// ([`AgentPolicy::observe`], [`AgentPolicy::choose`]).
 #[derive(Clone, Debug)]
 pub struct Features(Tensor<3>);
+
+/// One agent of a team acting with the hierarchy: its meta policy and the two low-level
+/// policies, each with its own recurrent state. A step goes:
+/// [`AgentHierarchy::observe`] (the path-finding observation, which the meta policy reads
+/// too), [`AgentHierarchy::choose`] once the agents ranked before it in the meta order chose,
+/// [`AgentHierarchy::observe_frame`] (the formation frame) and [`AgentHierarchy::act`] once
+/// the agents ranked before it in the low-level order acted (a leader that chose path
+/// finding acts before the frame, on the features of [`AgentHierarchy::observe`]). Both
+/// recurrent passes run every step, whichever policy acts, as in [`crate::LowLevel`].
+#[derive(Clone, Debug)]
+pub struct AgentHierarchy {
+    meta: AgentPolicy,
+    pathfinding: AgentPolicy,
+    formation: AgentPolicy,
+    /// The multiple the meta observation ends with (a weight-conditioned meta policy).
+    multiple: Option<f32>,
+    /// This step's meta and path-finding features.
+    observed: Option<(Features, Features)>,
+    /// This step's formation features.
+    framed: Option<Features>,
+}
+
+impl AgentHierarchy {
+    /// Agent `agent` of a team acting with `hierarchy` (a learned meta policy).
+    ///
+    /// # Errors
+    /// A scripted meta policy, or networks without a slot `agent`.
+    pub fn new(hierarchy: &Hierarchy, agent: usize) -> Result<AgentHierarchy, AgentError> {
+        let MetaPolicy::Learned(meta) = &hierarchy.meta else {
+            return Err(AgentError::Scripted);
+        };
+        let low = &hierarchy.low;
+        Ok(AgentHierarchy {
+            meta: AgentPolicy::new(meta.as_ref().clone(), agent)?,
+            pathfinding: AgentPolicy::new(low.pathfinding().clone(), agent)?,
+            formation: AgentPolicy::new(low.formation().clone(), agent)?,
+            multiple: hierarchy.conditioned().then_some(hierarchy.multiple as f32),
+            observed: None,
+            framed: None,
+        })
+    }
+
+    /// The agent.
+    pub fn agent(&self) -> usize {
+        self.meta.agent()
+    }
+
+    /// Starts a new episode (every recurrent state back to zeros).
+    pub fn reset(&mut self) {
+        for policy in [&mut self.meta, &mut self.pathfinding, &mut self.formation] {
+            policy.reset();
+        }
+        (self.observed, self.framed) = (None, None);
+    }
+
+    /// This step's path-finding observation (`grid` `[C, F, F]`, `vector`): the path-finding
+    /// and meta recurrent passes (the meta policy reads the same grid, and the vector with
+    /// the weight multiple of a conditioned meta policy).
+    ///
+    /// # Errors
+    /// Inputs of other sizes than the networks'.
+    pub fn observe(&mut self, grid: &[f32], vector: &[f32]) -> Result<(), AgentError> {
+        let mut meta_vector = vec![0.0; vector.len() + usize::from(self.multiple.is_some())];
+        phalanx_env::meta_vector(vector, self.multiple, &mut meta_vector);
+        // Both inputs are checked before either recurrent state moves.
+        self.meta.check_inputs(grid, &meta_vector)?;
+        self.pathfinding.check_inputs(grid, vector)?;
+        let meta = self.meta.observe(grid, &meta_vector)?;
+        let pathfinding = self.pathfinding.observe(grid, vector)?;
+        (self.observed, self.framed) = (Some((meta, pathfinding)), None);
+        Ok(())
+    }
+
+    /// The meta choice after the agents of `earlier` (`(agent, choice)`, those ranked before
+    /// it in the meta order) chose theirs: greedy, either choice allowed.
+    ///
+    /// # Errors
+    /// No observation this step, or a message outside the network's slots or choices.
+    pub fn choose(&self, earlier: &[(usize, u8)]) -> Result<Choice, AgentError> {
+        let (meta, _) = self.observed.as_ref().ok_or(AgentError::NotObserved("path-finding"))?;
+        let choice = self.meta.choose(meta, &[true; Choice::COUNT], earlier)?;
+        Ok(Choice::from_index(choice).expect("the meta network has two actions"))
+    }
+
+    /// This step's formation-frame observation (`grid` `[C, F, F]`, `vector`): the formation
+    /// recurrent pass.
+    ///
+    /// # Errors
+    /// Inputs of other sizes than the network's.
+    pub fn observe_frame(&mut self, grid: &[f32], vector: &[f32]) -> Result<(), AgentError> {
+        self.framed = Some(self.formation.observe(grid, vector)?);
+        Ok(())
+    }
+
+    /// The greedy action of the low-level policy `choice` under `mask` (that policy's
+    /// observation's, clipped by the earlier actions) after the agents of `earlier` (`(agent,
+    /// action)`, those ranked before it in the low-level order) acted.
+    ///
+    /// # Errors
+    /// No observation of that policy this step, a mask that does not fit or allows nothing,
+    /// a message outside the network's slots or actions.
+    pub fn act(
+        &self,
+        choice: Choice,
+        mask: &[bool],
+        earlier: &[(usize, u8)],
+    ) -> Result<u8, AgentError> {
+        match choice {
+            Choice::PathFinding => {
+                let (_, features) =
+                    self.observed.as_ref().ok_or(AgentError::NotObserved("path-finding"))?;
+                self.pathfinding.choose(features, mask, earlier)
+            }
+            Choice::Formation => {
+                let features = self.framed.as_ref().ok_or(AgentError::NotObserved("formation"))?;
+                self.formation.choose(features, mask, earlier)
+            }
+        }
+    }
+}

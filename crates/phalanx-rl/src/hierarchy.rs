@@ -86,6 +86,16 @@ impl LowLevel {
         Ok(LowLevel { pathfinding, formation })
     }
 
+    /// The path-finding policy.
+    pub fn pathfinding(&self) -> &Policy {
+        &self.pathfinding
+    }
+
+    /// The formation policy.
+    pub fn formation(&self) -> &Policy {
+        &self.formation
+    }
+
     /// The field of view both policies read.
     pub fn fov(&self) -> usize {
         self.pathfinding.config().fov

@@ -52,7 +52,7 @@ pub mod settings;
 pub mod train;
 pub mod weight;
 
-pub use agent::{AgentError, AgentPolicy, Features};
+pub use agent::{AgentError, AgentHierarchy, AgentPolicy, Features};
 pub use eval::evaluate_hierarchy;
 pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
 pub use hierarchy::{

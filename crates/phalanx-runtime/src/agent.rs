@@ -28,6 +28,19 @@ impl Decide for AgentPolicy {
     }
 }
 
+/// An agent's machine as [`crate::run_agent`] drives it: messages in, messages to publish
+/// (on [`crate::Topic::Actions`]) out.
+pub trait Machine {
+    /// Handles one message other than the end; returns what to publish.
+    ///
+    /// # Errors
+    /// A message the machine refuses, or a policy that fails.
+    fn handle_message(&mut self, message: Message) -> Result<Vec<Message>, AgentFault>;
+
+    /// The episode `episode` ended: forget it.
+    fn end(&mut self, episode: u32);
+}
+
 /// Why an agent cannot go on.
 #[derive(Debug, thiserror::Error)]
 pub enum AgentFault {
@@ -39,13 +52,72 @@ pub enum AgentFault {
         /// The observation's.
         other: u16,
     },
+    /// A message of the other kind of team: the world runs another policy.
+    #[error(
+        "this agent runs {runs}, the world sent a {sent}: the world and the agents must run \
+         the same policy (--policy)"
+    )]
+    OtherTeam {
+        /// The team this agent belongs to.
+        runs: &'static str,
+        /// The message it got.
+        sent: &'static str,
+    },
+    /// A frame naming a low-level policy that is none.
+    #[error("a frame with choice {0}, not 0 (path finding) or 1 (formation)")]
+    Choice(u8),
     /// The policy refused the observation.
     #[error(transparent)]
     Policy(#[from] phalanx_rl::AgentError),
 }
 
-/// An action heard: `(rank, agent, action)`.
-type Heard = (u16, u16, u8);
+/// A message heard: `(rank, agent, value)`.
+type Said = (u16, u16, u8);
+
+/// Messages heard from the other agents (actions, or choices), by `(episode, step)`: the
+/// first of each agent.
+#[derive(Debug, Default)]
+pub(crate) struct Heard(BTreeMap<(u32, u32), Vec<Said>>);
+
+impl Heard {
+    /// Notes `message` (an action or a choice) unless its agent was heard at its step.
+    pub(crate) fn note(&mut self, message: &Action) {
+        let heard = self.0.entry((message.episode, message.step)).or_default();
+        if !heard.iter().any(|&(_, agent, _)| agent == message.agent) {
+            heard.push((message.rank, message.agent, message.action));
+        }
+    }
+
+    /// What was heard of `agent` at `(episode, step)`.
+    pub(crate) fn of(&self, episode: u32, step: u32, agent: u16) -> Option<u8> {
+        let heard = self.0.get(&(episode, step))?;
+        heard.iter().find(|&&(_, a, _)| a == agent).map(|&(_, _, value)| value)
+    }
+
+    /// Forgets the steps of `episode` before `step` (they can no longer matter).
+    pub(crate) fn forget_before(&mut self, episode: u32, step: u32) {
+        self.0.retain(|&(e, s), _| e != episode || s >= step);
+    }
+
+    /// Forgets `episode`.
+    pub(crate) fn forget(&mut self, episode: u32) {
+        self.0.retain(|&(e, _), _| e != episode);
+    }
+
+    /// The `(agent, value)` of every rank before `rank` at `(episode, step)`, in rank order
+    /// (as the team's message is built); `None` until they are all in.
+    pub(crate) fn before(&self, episode: u32, step: u32, rank: u16) -> Option<Vec<(usize, u8)>> {
+        let heard = self.0.get(&(episode, step));
+        let mut earlier: Vec<Said> = heard
+            .map(|it| it.iter().copied().filter(|&(r, _, _)| r < rank).collect())
+            .unwrap_or_default();
+        if earlier.len() < usize::from(rank) {
+            return None;
+        }
+        earlier.sort_unstable();
+        Some(earlier.iter().map(|&(_, agent, value)| (usize::from(agent), value)).collect())
+    }
+}
 
 /// One agent of a decentralised run.
 #[derive(Debug)]
@@ -55,14 +127,14 @@ pub struct Agent<D> {
     episode: Option<u32>,
     /// This step's observation, until the agent acts on it.
     current: Option<Observation>,
-    /// Actions heard, by `(episode, step)`, each `(rank, agent, action)`.
-    heard: BTreeMap<(u32, u32), Vec<Heard>>,
+    /// Actions heard.
+    heard: Heard,
 }
 
 impl<D: Decide> Agent<D> {
     /// Agent `id` deciding with `policy`.
     pub fn new(id: u16, policy: D) -> Agent<D> {
-        Agent { id, policy, episode: None, current: None, heard: BTreeMap::new() }
+        Agent { id, policy, episode: None, current: None, heard: Heard::default() }
     }
 
     /// The agent's id.
@@ -72,7 +144,7 @@ impl<D: Decide> Agent<D> {
 
     /// The episode `episode` ended: forget it.
     pub fn end(&mut self, episode: u32) {
-        self.heard.retain(|&(e, _), _| e != episode);
+        self.heard.forget(episode);
         if self.current.as_ref().is_some_and(|o| o.episode == episode) {
             self.current = None;
         }
@@ -81,7 +153,8 @@ impl<D: Decide> Agent<D> {
     /// Handles one message; returns the action to publish when the agent acted.
     ///
     /// # Errors
-    /// An observation for another agent, or one the policy refuses.
+    /// An observation for another agent, one the policy refuses, or a message of the
+    /// hierarchy's phases.
     pub fn handle(&mut self, message: Message) -> Result<Option<Action>, AgentFault> {
         match message {
             Message::Observation(obs) => {
@@ -92,18 +165,15 @@ impl<D: Decide> Agent<D> {
                     self.episode = Some(obs.episode);
                     self.policy.reset();
                 }
-                // Actions of earlier steps can no longer matter.
-                let (episode, step) = (obs.episode, obs.step);
-                self.heard.retain(|&(e, s), _| e != episode || s >= step);
+                self.heard.forget_before(obs.episode, obs.step);
                 self.current = Some(obs);
             }
-            Message::Action(action) if action.agent != self.id => {
-                let heard = self.heard.entry((action.episode, action.step)).or_default();
-                if !heard.iter().any(|&(_, agent, _)| agent == action.agent) {
-                    heard.push((action.rank, action.agent, action.action));
-                }
+            Message::Action(action) if action.agent != self.id => self.heard.note(&action),
+            Message::Meta(_) | Message::Frame(_) => {
+                let sent = "message of the hierarchy's phases";
+                return Err(AgentFault::OtherTeam { runs: "the path-finding policy", sent });
             }
-            Message::Action(_) | Message::End(_) => {}
+            Message::Action(_) | Message::Choice(_) | Message::End(_) => {}
         }
         self.try_act()
     }
@@ -111,21 +181,23 @@ impl<D: Decide> Agent<D> {
     /// Acts when this step's observation and the actions of every agent before it are in.
     fn try_act(&mut self) -> Result<Option<Action>, AgentFault> {
         let Some(obs) = &self.current else { return Ok(None) };
-        let heard = self.heard.get(&(obs.episode, obs.step));
-        let mut earlier: Vec<Heard> = heard
-            .map(|it| it.iter().copied().filter(|&(rank, _, _)| rank < obs.rank).collect())
-            .unwrap_or_default();
-        if earlier.len() < usize::from(obs.rank) {
+        let Some(message) = self.heard.before(obs.episode, obs.step, obs.rank) else {
             return Ok(None);
-        }
-        // In rank order, as the team's message is built.
-        earlier.sort_unstable();
-        let message: Vec<(usize, u8)> =
-            earlier.iter().map(|&(_, agent, action)| (usize::from(agent), action)).collect();
+        };
         let action = self.policy.decide(obs, &message)?;
         let out =
             Action { episode: obs.episode, step: obs.step, agent: self.id, rank: obs.rank, action };
         self.current = None;
         Ok(Some(out))
+    }
+}
+
+impl<D: Decide> Machine for Agent<D> {
+    fn handle_message(&mut self, message: Message) -> Result<Vec<Message>, AgentFault> {
+        Ok(self.handle(message)?.map(Message::Action).into_iter().collect())
+    }
+
+    fn end(&mut self, episode: u32) {
+        Agent::end(self, episode);
     }
 }

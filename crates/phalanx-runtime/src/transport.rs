@@ -4,14 +4,14 @@ use std::time::{Duration, Instant};
 
 use phalanx_msg::{Message, WireError, decode};
 
-use crate::{Agent, AgentFault, Decide, World};
+use crate::{AgentFault, Machine, World};
 
 /// Where a message goes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Topic {
-    /// To one agent (its observations).
+    /// To one agent (its observations, the hierarchy's frames).
     Agent(u16),
-    /// To every agent and the world (actions).
+    /// To every agent and the world (actions, the hierarchy's choices).
     Actions,
     /// To every agent (the end of an episode).
     Control,
@@ -82,10 +82,12 @@ pub enum RunError {
 }
 
 /// Runs `world`'s episode to its end over `transport`: each step it publishes the
-/// observations and collects the actions; when none comes for `step_timeout`, or at once when
-/// the transport knows its process gone, the first agent in the step's order not in waits this
-/// step and its wait is published for the agents after it (each agent that fails costs at most
-/// one timeout), then it steps. Returns when the episode ends; the end is published.
+/// observations and collects the actions (for the hierarchy: the meta observations, the
+/// choices, then the frames and the actions); when none comes for `step_timeout`, or at once
+/// when the transport knows its process gone, the first agent in the step's order not in
+/// waits this step (or, its choice missing, runs path finding) and that is published for the
+/// agents after it (each agent that fails costs at most one timeout per phase), then it
+/// steps. Returns when the episode ends; the end is published.
 ///
 /// # Errors
 /// If the transport fails.
@@ -116,25 +118,27 @@ pub fn run_world_paced(
             std::thread::sleep(next_step - now);
         }
         next_step = Instant::now() + period;
-        for obs in world.observations() {
-            let topic = Topic::Agent(obs.agent);
-            transport.publish(topic, Message::Observation(obs).encode())?;
-        }
         let mut deadline = Instant::now() + step_timeout;
+        publish_outbox(world, transport)?;
         while !world.ready() {
             let left = deadline.saturating_duration_since(Instant::now());
             let gone = world.next_missing().is_some_and(|agent| transport.agent_gone(agent));
             let heard =
                 if left.is_zero() || gone { None } else { transport.receive(left.min(POLL))? };
             if let Some(bytes) = heard {
-                if let Ok(Message::Action(action)) = decode(&bytes) {
-                    world.receive(&action);
+                if let Ok(message) = decode(&bytes) {
+                    world.receive(&message);
                 }
             } else if gone || Instant::now() >= deadline {
-                // The first agent not in waits this step; those after it hear so.
-                if let Some(wait) = world.give_up_on_next() {
-                    transport.publish(Topic::Actions, Message::Action(wait).encode())?;
+                // The first agent not in waits this step (or runs path finding, when its
+                // choice is missing); those after it hear so.
+                if let Some(stand_in) = world.give_up_on_next() {
+                    transport.publish(Topic::Actions, stand_in.encode())?;
                 }
+                deadline = Instant::now() + step_timeout;
+            }
+            // The hierarchy's frames, once the choices and the leader's action are in.
+            if publish_outbox(world, transport)? {
                 deadline = Instant::now() + step_timeout;
             }
         }
@@ -145,13 +149,24 @@ pub fn run_world_paced(
     }
 }
 
-/// Runs `agent` over `transport` until an episode ends (returned), the world is silent for
-/// `silence`, or the transport knows the world gone (errors).
+/// Publishes what the world has to send; whether there was anything.
+fn publish_outbox(world: &mut World, transport: &mut impl Transport) -> Result<bool, RunError> {
+    let outbox = world.outbox();
+    let any = !outbox.is_empty();
+    for (topic, message) in outbox {
+        transport.publish(topic, message.encode())?;
+    }
+    Ok(any)
+}
+
+/// Runs `agent` (an [`crate::Agent`] or a [`crate::HierAgent`]) over `transport` until an
+/// episode ends (returned), the world is silent for `silence`, or the transport knows the
+/// world gone (errors).
 ///
 /// # Errors
 /// If the transport fails, a message cannot be read, the policy fails, or the world is gone.
-pub fn run_agent<D: Decide>(
-    agent: &mut Agent<D>,
+pub fn run_agent(
+    agent: &mut impl Machine,
     transport: &mut impl Transport,
     silence: Duration,
 ) -> Result<phalanx_msg::End, RunError> {
@@ -173,8 +188,8 @@ pub fn run_agent<D: Decide>(
             agent.end(end.episode);
             return Ok(end);
         }
-        if let Some(out) = agent.handle(message)? {
-            transport.publish(Topic::Actions, Message::Action(out).encode())?;
+        for out in agent.handle_message(message)? {
+            transport.publish(Topic::Actions, out.encode())?;
         }
     }
 }

@@ -595,4 +595,18 @@ fn a_decentralised_run_plans_what_the_batched_policy_plans() {
     assert!(stderr.contains("--step-timeout"), "{stderr}");
     let (_, stderr) = check(&phalanx(d, &["run", "missing.yaml"]), 2);
     assert!(stderr.contains("missing.yaml"), "{stderr}");
+
+    // The hierarchy as threads plans what `solve --planner hrl --rollouts 1` plans.
+    let hrl = ["run", "inst.yaml", "--policy", "hrl", "-o", "hrl.yaml"];
+    let (table, _) = check(&phalanx(d, &hrl), 0);
+    assert!(
+        table.contains("hrl (decentralised)") && table.contains("missed_choices: 0"),
+        "{table}"
+    );
+    let solve =
+        ["solve", "inst.yaml", "--planner", "hrl", "--rollouts", "1", "-o", "solve-hrl.yaml"];
+    check(&phalanx(d, &solve), 0);
+    assert_eq!(plan("hrl.yaml"), plan("solve-hrl.yaml"));
+    let (_, stderr) = check(&phalanx(d, &["run", "inst.yaml", "--policy", "meta"]), 2);
+    assert!(stderr.contains("meta"), "{stderr}");
 }

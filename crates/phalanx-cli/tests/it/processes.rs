@@ -1,8 +1,9 @@
 //! Decentralised runs as processes over Zenoh (docs/runtime.md): `phalanx world` and one
 //! `phalanx agent` per agent give the plan of `phalanx solve --planner pathfinding --rollouts
-//! 1`, on loopback and across two network namespaces joined by a veth pair; an agent killed
-//! mid-episode waits while the others go on and rejoins when restarted; agents stop with exit
-//! code 6 when the world is killed. Every wait is bounded.
+//! 1` (and with `--policy hrl` that of `--planner hrl`), on loopback and across two network
+//! namespaces joined by a veth pair; an agent killed mid-episode waits while the others go on
+//! and rejoins when restarted; agents stop with exit code 6 when the world is killed, for
+//! either policy. Every wait is bounded.
 
 use std::io::{BufRead as _, BufReader};
 use std::path::Path;
@@ -28,11 +29,11 @@ fn plan(dir: &Path, file: &str) -> phalanx_core::Plan {
 }
 
 /// Generates `inst.yaml` (side `size`, `agents` agents, seed `seed`) and the plan of one
-/// greedy rollout of the learned solver, `solve.yaml`.
-fn instance_and_solve(dir: &Path, size: &str, agents: &str, seed: &str) {
+/// greedy rollout of the learned solver `planner`, `solve.yaml`.
+fn instance_and_solve(dir: &Path, size: &str, agents: &str, seed: &str, planner: &str) {
     let args = ["gen", "--size", size, "--agents", agents, "--seed", seed, "-o", "inst.yaml"];
     check(&phalanx(dir, &args), 0);
-    let solve = ["solve", "inst.yaml", "--planner", "pathfinding", "--rollouts", "1"];
+    let solve = ["solve", "inst.yaml", "--planner", planner, "--rollouts", "1"];
     check(&phalanx(dir, &[&solve[..], &["-o", "solve.yaml"]].concat()), 0);
 }
 
@@ -82,9 +83,10 @@ fn await_start(lines: &Receiver<String>) {
     }
 }
 
-fn agent(dir: &Path, id: usize, endpoint: &str, prefix: &str) -> Child {
+fn agent(dir: &Path, id: usize, endpoint: &str, prefix: &str, policy: &str) -> Child {
     bin()
         .args(["agent", "--id", &id.to_string(), "--connect", endpoint, "--prefix", prefix])
+        .args(["--policy", policy])
         .current_dir(dir)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -96,7 +98,7 @@ fn agent(dir: &Path, id: usize, endpoint: &str, prefix: &str) -> Child {
 fn processes_over_zenoh_plan_what_the_batched_policy_plans() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    instance_and_solve(d, "20", "4", "5");
+    instance_and_solve(d, "20", "4", "5", "pathfinding");
     let args = ["run", "inst.yaml", "--processes", "-o", "proc.yaml", "--json"];
     let (json, _) = check(&phalanx(d, &args), 0);
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
@@ -116,7 +118,35 @@ fn processes_over_zenoh_plan_what_the_batched_policy_plans() {
 }
 
 #[test]
+fn processes_over_zenoh_plan_what_the_batched_hierarchy_plans() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    instance_and_solve(d, "20", "3", "3", "hrl");
+    let args = ["run", "inst.yaml", "--processes", "--policy", "hrl", "-o", "proc.yaml", "--json"];
+    let (json, _) = check(&phalanx(d, &args), 0);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(
+        (v["outcome"].as_str(), v["planner"].as_str()),
+        (Some("solved"), Some("hrl (decentralised)")),
+        "{json}"
+    );
+    let missed = ["missed_actions", "missed_choices", "stale_actions"].map(|k| v[k].as_u64());
+    assert_eq!(missed, [Some(0); 3], "{json}");
+    assert_eq!(plan(d, "proc.yaml"), plan(d, "solve.yaml"));
+}
+
+#[test]
 fn a_killed_agent_waits_and_rejoins_and_a_killed_world_stops_the_agents() {
+    killed_agent_and_world("pathfinding");
+}
+
+#[test]
+fn a_killed_agent_of_the_hierarchy_waits_and_rejoins_and_a_killed_world_stops_the_agents() {
+    killed_agent_and_world("hrl");
+}
+
+/// Agent 1 of a team of `policy` killed mid-episode and restarted, then the world killed.
+fn killed_agent_and_world(policy: &str) {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let args = ["gen", "--size", "32", "--agents", "3", "--seed", "2", "-o", "inst.yaml"];
@@ -128,6 +158,7 @@ fn a_killed_agent_waits_and_rejoins_and_a_killed_world_stops_the_agents() {
         let args = ["world", "inst.yaml", "--listen", &endpoint, "--prefix", &prefix, "--json"];
         let world = bin()
             .args(args)
+            .args(["--policy", policy])
             .args(["--step-period", "50", "--step-timeout", "300"])
             .current_dir(d)
             .stdout(Stdio::piped())
@@ -137,7 +168,7 @@ fn a_killed_agent_waits_and_rejoins_and_a_killed_world_stops_the_agents() {
         let mut procs = Children(vec![world]);
         let lines = stderr_lines(&mut procs.0[0]);
         for id in 0..3 {
-            procs.0.push(agent(d, id, &endpoint, &prefix));
+            procs.0.push(agent(d, id, &endpoint, &prefix, policy));
         }
         await_start(&lines);
         procs
@@ -149,7 +180,7 @@ fn a_killed_agent_waits_and_rejoins_and_a_killed_world_stops_the_agents() {
     procs.0[2].kill().unwrap();
     procs.0[2].wait().unwrap();
     std::thread::sleep(Duration::from_millis(500));
-    procs.0.push(agent(d, 1, &endpoint, &prefix));
+    procs.0.push(agent(d, 1, &endpoint, &prefix, policy));
     let code = wait_for(&mut procs.0[0], Duration::from_secs(120));
     let mut out = String::new();
     std::io::Read::read_to_string(procs.0[0].stdout.as_mut().unwrap(), &mut out).unwrap();
@@ -162,6 +193,16 @@ fn a_killed_agent_waits_and_rejoins_and_a_killed_world_stops_the_agents() {
     assert_eq!((missed[0], missed[2]), (0, 0), "{out}");
     assert!(missed[1] >= 3, "agent 1 missed the steps it was away: {out}");
     assert!(missed[1] + 5 < steps, "agent 1 acted again after its restart ({steps} steps): {out}");
+    if policy == "hrl" {
+        let choices: Vec<u64> = v["missed_choices_by_agent"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m.as_u64().unwrap())
+            .collect();
+        assert_eq!((choices[0], choices[2]), (0, 0), "{out}");
+        assert!(choices[1] >= 3 && choices[1] + 5 < steps, "agent 1 chose again: {out}");
+    }
     for i in [1, 3, 4] {
         assert_eq!(
             wait_for(&mut procs.0[i], Duration::from_secs(20)),
@@ -273,7 +314,7 @@ fn world_and_agents_on_two_hosts_plan_what_the_batched_policy_plans() {
     };
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    instance_and_solve(d, "20", "3", "7");
+    instance_and_solve(d, "20", "3", "7", "pathfinding");
     let world_ip = format!("{}.1", Hosts::subnet());
     let agents_ip = format!("{}.2", Hosts::subnet());
     let endpoint = format!("tcp/{world_ip}:7447");
