@@ -145,6 +145,23 @@ fn draw(figure: &Figure, out: &mut String) -> DrawResult {
     Ok(())
 }
 
+/// A tick at a whole number of 1 000 or more, in groups of three digits (`50 000`, not
+/// `50000.0`); `None` for other values, which the axis formats itself.
+fn large_integer(v: f64) -> Option<String> {
+    if v.abs() < 1000.0 || v.abs() >= 1e15 || (v - v.round()).abs() > 1e-9 {
+        return None;
+    }
+    let digits = (v.round().abs() as u64).to_string();
+    let mut grouped = String::new();
+    for (i, digit) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            grouped.push(' ');
+        }
+        grouped.push(digit);
+    }
+    Some(if v < 0.0 { format!("-{grouped}") } else { grouped })
+}
+
 /// The mesh, the series and the legend of `panel`.
 fn fill<'a, DB, X, Y>(
     mut chart: ChartContext<'a, DB, Cartesian2d<X, Y>>,
@@ -165,8 +182,10 @@ where
             String::new()
         }
     };
-    let plain = |v: &f64| X::format(v);
+    let plain = |v: &f64| large_integer(*v).unwrap_or_else(|| X::format(v));
+    let y_plain = |v: &f64| large_integer(*v).unwrap_or_else(|| Y::format(v));
     let mut mesh = chart.configure_mesh();
+    mesh.y_label_formatter(&y_plain);
     if let Some(label) = &panel.x.label {
         mesh.x_desc(label);
     }
@@ -227,4 +246,19 @@ where
         chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::large_integer;
+
+    #[test]
+    fn large_whole_ticks_are_grouped_and_others_left_to_the_axis() {
+        assert_eq!(large_integer(50_000.0).as_deref(), Some("50 000"));
+        assert_eq!(large_integer(1_234_567.0).as_deref(), Some("1 234 567"));
+        assert_eq!(large_integer(-2000.0).as_deref(), Some("-2 000"));
+        assert_eq!(large_integer(999.0), None);
+        assert_eq!(large_integer(1500.5), None);
+        assert_eq!(large_integer(0.25), None);
+    }
 }
