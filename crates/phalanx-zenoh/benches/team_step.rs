@@ -1,22 +1,24 @@
 //! Latency of one team step of a decentralised run, over Zenoh on loopback (every endpoint a
 //! session of its own, as separate processes are) and over the in-process bus, for teams of
-//! 3, 5 and 8: the time from the world publishing a step's observations to it publishing the
-//! next's (every action in, the environment stepped), p50 and p99; and the bytes on the wire
-//! per agent and step (the messages' payloads, and the loopback interface's counters, TCP/IP
-//! and Zenoh headers included). Agents decide by a scripted rule, so the figures are the
-//! transport's, not a network's inference.
+//! 3, 5 and 8 of the path-finding policy and of the hierarchy: the time from the world
+//! publishing a step's observations to it publishing the next's (every action in, the
+//! environment stepped; for the hierarchy every choice, the leader's action, the frames and
+//! every other action), p50 and p99; and the bytes on the wire per agent and step (the
+//! messages' payloads, and the loopback interface's counters, TCP/IP and Zenoh headers
+//! included). Agents decide by a scripted rule, so the figures are the transport's, not a
+//! network's inference.
 //!
 //! `cargo bench -p phalanx-zenoh --bench team_step` measures (500 steps per team); as a test
 //! (`cargo test --benches`) it runs 20 steps per team and checks the figures are sane.
 
 use std::time::{Duration, Instant};
 
-use phalanx_env::EnvConfig;
+use phalanx_env::{Choice, EnvConfig};
 use phalanx_gen::{GenConfig, generate};
 use phalanx_msg::{Message, Observation, decode};
 use phalanx_runtime::{
-    Agent, AgentFault, Decide, Topic, Transport, TransportError, World, inproc, run_agent,
-    run_world,
+    Agent, AgentFault, Decide, DecideHier, HierAgent, Machine, Topic, Transport, TransportError,
+    World, inproc, run_agent, run_world,
 };
 use phalanx_zenoh::{DEFAULT_AGENT_ENDPOINT, Endpoints, Role, ZenohTransport};
 
@@ -24,16 +26,76 @@ use phalanx_zenoh::{DEFAULT_AGENT_ENDPOINT, Endpoints, Role, ZenohTransport};
 /// never finishes, so an episode runs to its step limit.
 struct Wander;
 
+impl Wander {
+    /// A number drawn from `seed` and the message.
+    fn draw(seed: u64, earlier: &[(usize, u8)]) -> usize {
+        let salt = earlier.iter().fold(seed, |h, &(a, m)| {
+            h.wrapping_mul(1_000_003).wrapping_add((a * 7) as u64 + u64::from(m))
+        });
+        (salt.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 33) as usize
+    }
+
+    /// An allowed action of `mask` drawn from `seed` and the message.
+    fn pick(mask: &[bool], seed: u64, earlier: &[(usize, u8)]) -> u8 {
+        let allowed: Vec<usize> = (0..mask.len()).filter(|&a| mask[a]).collect();
+        allowed[Wander::draw(seed, earlier) % allowed.len()] as u8
+    }
+}
+
 impl Decide for Wander {
     fn reset(&mut self) {}
 
     fn decide(&mut self, obs: &Observation, earlier: &[(usize, u8)]) -> Result<u8, AgentFault> {
-        let salt =
-            earlier.iter().fold(u64::from(obs.step) * 31 + u64::from(obs.agent), |h, &(a, m)| {
-                h.wrapping_mul(1_000_003).wrapping_add((a * 7) as u64 + u64::from(m))
-            });
-        let allowed: Vec<usize> = (0..obs.mask.len()).filter(|&a| obs.mask[a]).collect();
-        Ok(allowed[(salt.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 33) as usize % allowed.len()] as u8)
+        Ok(Wander::pick(&obs.mask, u64::from(obs.step) * 31 + u64::from(obs.agent), earlier))
+    }
+}
+
+/// [`Wander`] as an agent of the hierarchy: the choice drawn too.
+#[derive(Default)]
+struct WanderHier {
+    seed: u64,
+}
+
+impl DecideHier for WanderHier {
+    fn reset(&mut self) {}
+
+    fn observe(&mut self, obs: &Observation) -> Result<(), AgentFault> {
+        self.seed = u64::from(obs.step) * 31 + u64::from(obs.agent);
+        Ok(())
+    }
+
+    fn choose(&mut self, earlier: &[(usize, u8)]) -> Result<Choice, AgentFault> {
+        Ok(if Wander::draw(self.seed, earlier).is_multiple_of(2) {
+            Choice::PathFinding
+        } else {
+            Choice::Formation
+        })
+    }
+
+    fn observe_frame(&mut self, _: &Observation) -> Result<(), AgentFault> {
+        Ok(())
+    }
+
+    fn act(&mut self, _: Choice, mask: &[bool], earlier: &[(usize, u8)]) -> Result<u8, AgentFault> {
+        Ok(Wander::pick(mask, self.seed, earlier))
+    }
+}
+
+/// Which team runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Team {
+    PathFinding,
+    Hierarchy,
+}
+
+/// Runs agent `id` of `team` over `transport` to the episode's end.
+fn agent(team: Team, id: u16, transport: &mut impl Transport, silence: Duration) {
+    fn go(agent: &mut impl Machine, transport: &mut impl Transport, silence: Duration) {
+        run_agent(agent, transport, silence).unwrap();
+    }
+    match team {
+        Team::PathFinding => go(&mut Agent::new(id, Wander), transport, silence),
+        Team::Hierarchy => go(&mut HierAgent::new(id, WanderHier::default()), transport, silence),
     }
 }
 
@@ -48,7 +110,8 @@ struct Timed<T> {
 
 impl<T: Transport> Transport for Timed<T> {
     fn publish(&mut self, topic: Topic, bytes: Vec<u8>) -> Result<(), TransportError> {
-        if topic == Topic::Agent(0) {
+        // A step starts with agent 0's observation (kind 1) or meta observation (kind 4).
+        if topic == Topic::Agent(0) && matches!(bytes.get(3), Some(1 | 4)) {
             let now = Instant::now();
             if let Some(last) = self.last.replace(now) {
                 self.steps.push(now - last);
@@ -61,7 +124,7 @@ impl<T: Transport> Transport for Timed<T> {
     fn receive(&mut self, timeout: Duration) -> Result<Option<Vec<u8>>, TransportError> {
         let heard = self.inner.receive(timeout)?;
         if let Some(bytes) = &heard {
-            assert!(matches!(decode(bytes), Ok(Message::Action(_))));
+            assert!(matches!(decode(bytes), Ok(Message::Action(_) | Message::Choice(_))));
             self.payload += bytes.len() as u64;
         }
         Ok(heard)
@@ -80,23 +143,25 @@ fn loopback_bytes() -> u64 {
         .unwrap_or(0)
 }
 
-fn world(n_agents: usize, steps: u32) -> World {
+fn world(team: Team, n_agents: usize, steps: u32) -> World {
     let instance =
         generate(&GenConfig { size: 192, density: 0.1, n_agents, seed: 1, fov: 9 }).unwrap();
     let config = EnvConfig { step_limit: Some(steps), ..EnvConfig::default() };
-    World::new(&instance, config, 0).unwrap()
+    match team {
+        Team::PathFinding => World::new(&instance, config, 0),
+        Team::Hierarchy => World::hierarchy(&instance, config, 0),
+    }
+    .unwrap()
 }
 
 /// One episode of `steps` steps over the in-process bus: the step times and the payload.
-fn in_process(n: u16, steps: u32) -> (Vec<Duration>, u64) {
-    let mut world = world(usize::from(n), steps);
+fn in_process(team: Team, n: u16, steps: u32) -> (Vec<Duration>, u64) {
+    let mut world = world(team, usize::from(n), steps);
     let (world_end, agent_ends) = inproc::bus(n);
     let mut timed = Timed { inner: world_end, last: None, steps: vec![], payload: 0 };
     std::thread::scope(|scope| {
         for (id, mut end) in agent_ends.into_iter().enumerate() {
-            scope.spawn(move || {
-                run_agent(&mut Agent::new(id as u16, Wander), &mut end, Duration::from_secs(30))
-            });
+            scope.spawn(move || agent(team, id as u16, &mut end, Duration::from_secs(30)));
         }
         run_world(&mut world, &mut timed, Duration::from_secs(10)).unwrap();
     });
@@ -105,12 +170,12 @@ fn in_process(n: u16, steps: u32) -> (Vec<Duration>, u64) {
 
 /// One episode of `steps` steps over Zenoh on loopback: the step times, the payload and the
 /// loopback interface's bytes.
-fn over_zenoh(n: u16, steps: u32) -> (Vec<Duration>, u64, u64) {
+fn over_zenoh(team: Team, n: u16, steps: u32) -> (Vec<Duration>, u64, u64) {
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let connect = format!("tcp/127.0.0.1:{port}");
     let mut endpoints = Endpoints::world(&connect);
-    endpoints.prefix = format!("phalanx-bench/{}/{n}", std::process::id());
-    let mut world = world(usize::from(n), steps);
+    endpoints.prefix = format!("phalanx-bench/{}/{team:?}/{n}", std::process::id());
+    let mut world = world(team, usize::from(n), steps);
     let join = Duration::from_secs(30);
     let mut before = 0;
     let timed = std::thread::scope(|scope| {
@@ -123,7 +188,7 @@ fn over_zenoh(n: u16, steps: u32) -> (Vec<Duration>, u64, u64) {
                 let mut transport =
                     ZenohTransport::open(Role::Agent(id), &agent_endpoints).unwrap();
                 transport.wait_ready(join).unwrap();
-                run_agent(&mut Agent::new(id, Wander), &mut transport, join).unwrap();
+                agent(team, id, &mut transport, join);
             });
         }
         timed.inner.wait_ready(join).unwrap();
@@ -146,9 +211,12 @@ fn main() {
     println!(
         "team step latency ({steps} steps; p50 / p99), payload and wire bytes per agent and step"
     );
-    for n in [3_u16, 5, 8] {
-        let (mut local, local_payload) = in_process(n, steps);
-        let (mut zenoh, zenoh_payload, wire) = over_zenoh(n, steps);
+    for (team, n) in [Team::PathFinding, Team::Hierarchy]
+        .into_iter()
+        .flat_map(|team| [3_u16, 5, 8].map(|n| (team, n)))
+    {
+        let (mut local, local_payload) = in_process(team, n, steps);
+        let (mut zenoh, zenoh_payload, wire) = over_zenoh(team, n, steps);
         local.sort_unstable();
         zenoh.sort_unstable();
         let per =
@@ -160,7 +228,7 @@ fn main() {
             "whole episodes"
         );
         println!(
-            "{n} agents: in-process {:?} / {:?}; zenoh {:?} / {:?}; payload {} B, loopback {} B",
+            "{team:?}, {n} agents: in-process {:?} / {:?}; zenoh {:?} / {:?}; payload {} B, loopback {} B",
             percentile(&local, 0.5),
             percentile(&local, 0.99),
             percentile(&zenoh, 0.5),
