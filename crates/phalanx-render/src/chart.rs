@@ -154,7 +154,7 @@ fn large_integer(v: f64) -> Option<String> {
     let digits = (v.round().abs() as u64).to_string();
     let mut grouped = String::new();
     for (i, digit) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
             grouped.push(' ');
         }
         grouped.push(digit);
