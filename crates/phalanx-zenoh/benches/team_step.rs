@@ -110,8 +110,11 @@ struct Timed<T> {
 
 impl<T: Transport> Transport for Timed<T> {
     fn publish(&mut self, topic: Topic, bytes: Vec<u8>) -> Result<(), TransportError> {
-        // A step starts with agent 0's observation (kind 1) or meta observation (kind 4).
-        if topic == Topic::Agent(0) && matches!(bytes.get(3), Some(1 | 4)) {
+        // A step starts with agent 0's observation (path finding) or meta observation (the
+        // hierarchy); agent 0's frames come later in the step.
+        let starts_step = topic == Topic::Agent(0)
+            && matches!(decode(&bytes), Ok(Message::Observation(_) | Message::Meta(_)));
+        if starts_step {
             let now = Instant::now();
             if let Some(last) = self.last.replace(now) {
                 self.steps.push(now - last);
