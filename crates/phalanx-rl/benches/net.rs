@@ -78,7 +78,7 @@ fn decision(c: &mut Criterion) {
     let mut group = c.benchmark_group("decision");
     for (name, config) in presets() {
         let net = config.init(&mut ChaCha8Rng::seed_from_u64(3), &device);
-        let mut policy = Policy::new(net, config.clone(), &device);
+        let mut policy = Policy::new(&net, config.clone());
         let mut obs = ObsBuffers::new(1, obs_shape(&config));
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         random_obs(&mut obs, &mut rng);
@@ -141,7 +141,7 @@ fn hierarchy_decision(c: &mut Criterion) {
     let mut low = LowLevel::new(load("pathfinding"), load("formation")).unwrap();
     let meta_config = QNetConfig { n_actions: 2, env_vec: 4, ..QNetConfig::default() };
     let net = meta_config.init(&mut ChaCha8Rng::seed_from_u64(5), &device);
-    let mut meta = Policy::new(net, meta_config, &device);
+    let mut meta = Policy::new(&net, meta_config);
     let mut group = c.benchmark_group("hierarchy_decision");
     for agents in [1, 3] {
         let config = GenConfig { size: 32, density: 0.15, n_agents: agents, seed: 3, fov: 9 };

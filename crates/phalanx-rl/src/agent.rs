@@ -9,11 +9,10 @@
 //! an agent per team member, driven through the phases of the hierarchy's step, gives the
 //! trajectory of the batched hierarchy (tested over the in-process bus in phalanx-runtime).
 
-use burn::tensor::{Tensor, TensorData};
 use phalanx_env::Choice;
 
 use crate::hierarchy::{Hierarchy, MetaPolicy};
-use crate::net::{masked_argmax, tensor3, to_vec};
+use crate::net::masked_argmax;
 use crate::policy::Policy;
 
 /// Why an agent cannot act.
@@ -128,13 +127,7 @@ impl AgentPolicy {
         let mut vec = vec![0.0_f32; cfg.vec_dim()];
         vec[..cfg.env_vec].copy_from_slice(vector);
         vec[cfg.env_vec + self.agent] = 1.0;
-        let device = self.policy.device().clone();
-        let grid = Tensor::<5>::from_data(
-            TensorData::new(grid.to_vec(), [1, 1, cfg.channels, cfg.fov, cfg.fov]),
-            &device,
-        );
-        let vec = tensor3(vec, [1, 1, cfg.vec_dim()], &device);
-        Ok(Features(self.policy.recurrent_rows(grid, vec)))
+        Ok(Features(self.policy.recurrent_rows(grid, &vec)))
     }
 
     /// The greedy action the head gives `features` (this step's, from
@@ -156,9 +149,7 @@ impl AgentPolicy {
 
     /// The head's greedy action under a checked mask and message.
     fn head(&self, features: &Features, mask: &[bool], message: Vec<f32>) -> u8 {
-        let len = message.len();
-        let message = tensor3(message, [1, 1, len], self.policy.device());
-        let q = to_vec(self.policy.head(features.0.clone(), message));
+        let q = self.policy.head(&features.0, &message);
         masked_argmax(&q, mask) as u8
     }
 
@@ -206,7 +197,7 @@ impl AgentPolicy {
 /// One step's output of an agent's recurrent pass, which its head reads
 /// ([`AgentPolicy::observe`], [`AgentPolicy::choose`]).
 #[derive(Clone, Debug)]
-pub struct Features(Tensor<3>);
+pub struct Features(Vec<f32>);
 
 /// One agent of a team acting with the hierarchy: its meta policy and the two low-level
 /// policies, each with its own recurrent state. A step goes:

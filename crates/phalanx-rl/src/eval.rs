@@ -97,8 +97,9 @@ pub fn evaluate(
     rollouts: Rollouts,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
+    let mut envs = Vec::new();
     let mut play = |chunk: &[Instance], epsilon, rng: &mut ChaCha8Rng| {
-        play_low_level(policy, task, env, chunk, epsilon, rng)
+        play_low_level(policy, task, env, chunk, epsilon, rng, &mut envs)
     };
     evaluate_with(&mut play, instances, batch, rollouts, progress)
 }
@@ -119,8 +120,10 @@ pub fn evaluate_at(
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut rng = ChaCha8Rng::seed_from_u64(rollouts.seed);
     let mut res = Vec::with_capacity(instances.len());
+    let mut envs = Vec::new();
     for chunk in instances.chunks(batch.max(1)) {
-        res.extend(play_low_level(policy, task, env, chunk, rollouts.epsilon, &mut rng)?);
+        let epsilon = rollouts.epsilon;
+        res.extend(play_low_level(policy, task, env, chunk, epsilon, &mut rng, &mut envs)?);
     }
     Ok(res)
 }
@@ -137,8 +140,9 @@ pub fn evaluate_hierarchy(
     rollouts: Rollouts,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
+    let mut envs = Vec::new();
     let mut play = |chunk: &[Instance], epsilon, rng: &mut ChaCha8Rng| {
-        play_hierarchy(hierarchy, env, chunk, epsilon, rng)
+        play_hierarchy(hierarchy, env, chunk, epsilon, rng, &mut envs)
     };
     evaluate_with(&mut play, instances, batch, rollouts, progress)
 }
@@ -277,7 +281,9 @@ fn lower_bound(env: &Env) -> u32 {
     (0..env.n_agents()).map(|a| env.cost_to_go(a)).max().unwrap_or(0)
 }
 
-/// One rollout of a low-level policy on every instance of `chunk` in lockstep.
+/// One rollout of a low-level policy on every instance of `chunk` in lockstep. `envs` are
+/// the environments of the last call, reused where the agent count allows: the rollouts of
+/// an instance then search its distance maps once (`Env::reset` keeps them).
 fn play_low_level(
     policy: &mut Policy,
     task: Task,
@@ -285,14 +291,16 @@ fn play_low_level(
     chunk: &[Instance],
     epsilon: f64,
     rng: &mut ChaCha8Rng,
+    envs: &mut Vec<TaskEnv>,
 ) -> Result<Vec<EvalEpisode>, EnvError> {
-    let mut envs = Vec::with_capacity(chunk.len());
+    envs.truncate(chunk.len());
     let mut obs = Vec::with_capacity(chunk.len());
-    for instance in chunk {
-        let mut task_env = TaskEnv::new(task, env.clone(), instance.n_agents())?;
-        let mut buffers = ObsBuffers::new(instance.n_agents(), task_env.obs_shape());
+    for (e, instance) in chunk.iter().enumerate() {
+        let n = instance.n_agents();
+        let fits = |it: &TaskEnv| it.env().n_agents() == n;
+        let task_env = reuse(envs, e, fits, || TaskEnv::new(task, env.clone(), n))?;
+        let mut buffers = ObsBuffers::new(n, task_env.obs_shape());
         task_env.reset_to(instance, &mut buffers)?;
-        envs.push(task_env);
         obs.push(buffers);
     }
     let sims: Vec<&Env> = envs.iter().map(|it| it.env()).collect();
@@ -313,26 +321,47 @@ fn play_low_level(
     Ok(tracks.finish())
 }
 
+/// `envs[e]` when it `fits`, else a fresh environment from `make` in its place (`envs` holds
+/// at least `e` environments).
+fn reuse<T>(
+    envs: &mut Vec<T>,
+    e: usize,
+    fits: impl Fn(&T) -> bool,
+    make: impl FnOnce() -> Result<T, EnvError>,
+) -> Result<&mut T, EnvError> {
+    if !envs.get(e).is_some_and(fits) {
+        let fresh = make()?;
+        if e < envs.len() {
+            envs[e] = fresh;
+        } else {
+            envs.push(fresh);
+        }
+    }
+    Ok(&mut envs[e])
+}
+
 /// One rollout of the hierarchy on every instance of `chunk` in lockstep: the meta policy
 /// chooses greedily, the low level acts with random actions at rate `epsilon`.
+/// `envs`: as in [`play_low_level`].
 fn play_hierarchy(
     hierarchy: &mut Hierarchy,
     env: &EnvConfig,
     chunk: &[Instance],
     epsilon: f64,
     rng: &mut ChaCha8Rng,
+    envs: &mut Vec<HierEnv>,
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let conditioned = hierarchy.conditioned();
-    let mut envs = Vec::with_capacity(chunk.len());
+    envs.truncate(chunk.len());
     let mut obs = Vec::with_capacity(chunk.len());
-    for instance in chunk {
+    for (e, instance) in chunk.iter().enumerate() {
         let n = instance.n_agents();
-        let mut hier = HierEnv::new(env.clone(), n, conditioned)?;
+        let fits = |it: &HierEnv| it.n_agents() == n;
+        let hier = reuse(envs, e, fits, || HierEnv::new(env.clone(), n, conditioned))?;
         let mut buffers = ObsBuffers::new(n, hier.meta_shape());
         let multiple = hierarchy.multiple;
         let w_f = hierarchy.formation_weight(n);
         hier.reset_to(instance, w_f, multiple, &mut buffers)?;
-        envs.push(hier);
         obs.push(buffers);
     }
     let sims: Vec<&Env> = envs.iter().map(|it| it.env()).collect();
@@ -343,12 +372,12 @@ fn play_hierarchy(
     hierarchy.reset();
     let mut greedy = ChaCha8Rng::seed_from_u64(0);
     while tracks.running.contains(&true) {
-        hierarchy.choose(&envs, &obs, &mut greedy, &mut choices);
+        hierarchy.choose(envs, &obs, &mut greedy, &mut choices);
         for (e, hier) in envs.iter_mut().enumerate() {
             let (at, n) = (offsets[e], chunk[e].n_agents());
             hier.set_choices(&choices[at..at + n]);
         }
-        hierarchy.low.act_batch(&mut envs, &choices, epsilon, rng, &mut actions);
+        hierarchy.low.act_batch(envs, &choices, epsilon, rng, &mut actions);
         for (e, hier) in envs.iter_mut().enumerate() {
             if tracks.running[e] {
                 let (at, n) = (offsets[e], chunk[e].n_agents());

@@ -164,7 +164,7 @@ impl Learner {
 
     /// A greedy/ε-greedy acting policy with the current online weights (no autodiff).
     pub fn policy(&self) -> Policy {
-        Policy::new(self.online.valid(), self.net_config.clone(), &self.device.clone().inner())
+        Policy::new(&self.online.valid(), self.net_config.clone())
     }
 
     /// One gradient update on a batch sampled from one agent count's buffer; `None` while no

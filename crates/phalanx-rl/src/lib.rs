@@ -39,6 +39,7 @@
 pub mod agent;
 pub mod checkpoint;
 pub mod eval;
+mod frozen;
 pub mod hierarchy;
 mod hyper;
 pub mod learner;

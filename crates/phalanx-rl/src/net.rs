@@ -21,6 +21,8 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::frozen::{Conv, Dense, FrozenNet, Lstm};
+
 /// Observation encoder choice.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -388,6 +390,44 @@ impl QNet {
             layers_out.push(last);
         }
         (seq, RecurrentState { layers: layers_out })
+    }
+
+    /// The weights as plain arrays, for acting (`config`: the network's sizes).
+    pub(crate) fn frozen(&self, config: &QNetConfig) -> FrozenNet {
+        let dense = |layer: &Linear| {
+            let [d_in, d_out] = layer.weight.dims();
+            let bias = layer.bias.as_ref().map_or_else(|| vec![0.0; d_out], |b| to_vec(b.val()));
+            Dense { d_in, d_out, weight: to_vec(layer.weight.val()), bias }
+        };
+        let convs = self
+            .convs
+            .iter()
+            .map(|conv| {
+                let [c_out, c_in, _, _] = conv.weight.dims();
+                let bias = conv.bias.as_ref().map_or_else(|| vec![0.0; c_out], |b| to_vec(b.val()));
+                Conv { c_in, c_out, weight: to_vec(conv.weight.val()), bias }
+            })
+            .collect();
+        let lstm = self
+            .lstm
+            .iter()
+            .map(|layer| Lstm {
+                input: dense(&layer.input),
+                recurrent: to_vec(layer.recurrent.weight.val()),
+                hidden: layer.d_hidden(),
+            })
+            .collect();
+        FrozenNet {
+            channels: config.channels,
+            fov: config.fov,
+            vec_dim: config.vec_dim(),
+            convs,
+            dense: self.dense.iter().map(dense).collect(),
+            team: self.team.as_ref().map(|team| (dense(team), self.n_slots())),
+            lstm,
+            head_hidden: dense(&self.head_hidden),
+            head_out: dense(&self.head_out),
+        }
     }
 
     /// The Q head: recurrent features plus the action message.

@@ -9,20 +9,25 @@
 //! Episodes may have different agent counts. The recurrent state of each episode is carried
 //! between calls; [`Policy::reset_envs`] clears the rows of episodes that start again.
 
-use burn::tensor::{Device, Int, Tensor, TensorData};
+use std::sync::Arc;
+
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::net::{MASKED_Q, QNet, QNetConfig, RecurrentState, masked_argmax, tensor3, to_vec};
+use crate::frozen::{FrozenNet, State};
+use crate::net::{MASKED_Q, QNet, QNetConfig, masked_argmax};
 use phalanx_env::ObsBuffers;
 
 /// A frozen Q-network that acts: batched recurrent step, then the head in leader order.
+///
+/// It runs a plain copy of the network's weights (`crate::frozen`: the same layers written
+/// for their fixed sizes, agreeing with [`QNet`]'s forward pass to rounding); clones share
+/// the weights.
 #[derive(Clone, Debug)]
 pub struct Policy {
-    net: QNet,
+    net: Arc<FrozenNet>,
     config: QNetConfig,
-    device: Device,
-    state: Option<RecurrentState>,
+    state: Option<State>,
 }
 
 /// Why a saved recurrent state does not fit a policy's network.
@@ -49,9 +54,9 @@ pub enum RecurrentStateError {
 }
 
 impl Policy {
-    /// Wrap a network (normally without autodiff: `net.valid()`).
-    pub fn new(net: QNet, config: QNetConfig, device: &Device) -> Self {
-        Self { net, config, device: device.clone(), state: None }
+    /// A policy acting with a copy of `net`'s weights (`config`: its sizes).
+    pub fn new(net: &QNet, config: QNetConfig) -> Self {
+        Self { net: Arc::new(net.frozen(&config)), config, state: None }
     }
 
     /// The network sizes.
@@ -60,8 +65,8 @@ impl Policy {
     }
 
     /// Replace the weights, keeping the recurrent state (a learner's policy after an update).
-    pub fn set_net(&mut self, net: QNet) {
-        self.net = net;
+    pub fn set_net(&mut self, net: &QNet) {
+        self.net = Arc::new(net.frozen(&self.config));
     }
 
     /// Forget the recurrent state of every episode (call at the start of new episodes).
@@ -77,27 +82,24 @@ impl Policy {
             self.state = None;
             return;
         }
-        let Some(state) = self.state.take() else { return };
-        let keep: Vec<f32> = agents
-            .iter()
-            .zip(restart)
-            .flat_map(|(&n, &reset)| std::iter::repeat_n(if reset { 0.0 } else { 1.0 }, n))
-            .collect();
-        let rows = keep.len();
-        let keep = Tensor::<2>::from_data(TensorData::new(keep, [rows, 1]), &self.device);
-        let layers = state
-            .layers
-            .into_iter()
-            .map(|(cell, hidden)| (cell * keep.clone(), hidden * keep.clone())) // [rows, H]
-            .collect();
-        self.state = Some(RecurrentState { layers });
+        let Some(state) = self.state.as_mut() else { return };
+        let hidden = self.config.lstm_hidden;
+        let mut row = 0;
+        for (&n, &reset) in agents.iter().zip(restart) {
+            if reset {
+                for (cell, h) in state.iter_mut() {
+                    cell[row * hidden..(row + n) * hidden].fill(0.0);
+                    h[row * hidden..(row + n) * hidden].fill(0.0);
+                }
+            }
+            row += n;
+        }
     }
 
     /// The recurrent state carried between calls, per layer `(cell, hidden)`, each `[rows, H]`
     /// row-major (rows as in the last [`Policy::act_batch`]); `None` when it is all zeros.
     pub(crate) fn recurrent_state(&self) -> Option<Vec<(Vec<f32>, Vec<f32>)>> {
-        let state = self.state.as_ref()?;
-        Some(state.layers.iter().map(|(c, h)| (to_vec(c.clone()), to_vec(h.clone()))).collect())
+        self.state.clone()
     }
 
     /// Restore a state from [`Policy::recurrent_state`].
@@ -119,8 +121,7 @@ impl Policy {
                 expected: self.config.lstm_layers,
             });
         }
-        let mut res = Vec::with_capacity(layers.len());
-        for (cell, h) in layers {
+        for (cell, h) in &layers {
             let rows = cell.len() / hidden;
             if cell.len() != rows * hidden || h.len() != cell.len() {
                 return Err(RecurrentStateError::Shape {
@@ -129,11 +130,8 @@ impl Policy {
                     width: hidden,
                 });
             }
-            let tensor =
-                |data| Tensor::<2>::from_data(TensorData::new(data, [rows, hidden]), &self.device);
-            res.push((tensor(cell), tensor(h)));
         }
-        self.state = Some(RecurrentState { layers: res });
+        self.state = Some(layers);
         Ok(())
     }
 
@@ -198,11 +196,11 @@ impl Policy {
     }
 
     /// The recurrent step of every agent of every episode of `obs` (one batched pass; the
-    /// state is carried to the next call): the features `[Σ N_e, 1, H]` its head reads.
+    /// state is carried to the next call): the features `[Σ N_e, H]` its head reads.
     ///
     /// # Panics
     /// As [`Policy::act_batch`].
-    pub fn recurrent_step(&mut self, obs: &[&ObsBuffers]) -> Tensor<3> {
+    pub fn recurrent_step(&mut self, obs: &[&ObsBuffers]) -> Vec<f32> {
         let cfg = &self.config;
         let (fov, channels, vec_dim) = (cfg.fov, cfg.channels, cfg.vec_dim());
         let rows: usize = obs.iter().map(|env| env.n_agents).sum();
@@ -223,13 +221,8 @@ impl Policy {
                 row += 1;
             }
         }
-        let grid = Tensor::<5>::from_data(
-            TensorData::new(grid, [rows, 1, channels, fov, fov]),
-            &self.device,
-        ); // [rows, 1, C, F, F]
-        let vec = tensor3(vec, [rows, 1, vec_dim], &self.device); // [rows, 1, V]
         let teams: Vec<usize> = obs.iter().map(|env| env.n_agents).collect();
-        self.team_rows(grid, vec, &teams)
+        self.team_rows(&grid, &vec, &teams)
     }
 
     /// Whether the network reads the whole team's observations ([`QNetConfig::centralised`]):
@@ -238,38 +231,27 @@ impl Policy {
         self.config.centralised
     }
 
-    /// The recurrent step of prepared inputs of one agent each (`grid [rows, 1, C, F, F]`,
-    /// `vec [rows, 1, V]` with the agent-slot one-hot), carrying the state: the features
-    /// `[rows, 1, H]`.
+    /// The recurrent step of prepared inputs of one agent each (`grid` `[rows, C, F, F]`,
+    /// `vec` `[rows, V]` with the agent-slot one-hot), carrying the state: the features
+    /// `[rows, H]`.
     ///
     /// # Panics
     /// If the rows differ from the last call's without a reset, or the network is
     /// centralised (it needs the team's rows).
-    pub(crate) fn recurrent_rows(&mut self, grid: Tensor<5>, vec: Tensor<3>) -> Tensor<3> {
+    pub(crate) fn recurrent_rows(&mut self, grid: &[f32], vec: &[f32]) -> Vec<f32> {
         assert!(!self.is_centralised(), "a centralised network acts for whole teams only");
-        let rows = grid.dims()[0];
+        let rows = vec.len() / self.config.vec_dim();
         self.team_rows(grid, vec, &[rows])
     }
 
     /// [`Policy::recurrent_rows`] of rows laid out as teams (`teams`: their agent counts).
-    fn team_rows(&mut self, grid: Tensor<5>, vec: Tensor<3>, teams: &[usize]) -> Tensor<3> {
-        let rows = grid.dims()[0];
-        if let Some(state) = &self.state {
-            assert_eq!(state.layers[0].0.dims()[0], rows, "agent counts changed without a reset");
-        }
-        let (features, state) = self.net.forward_recurrent(grid, vec, self.state.take(), teams); // [rows, 1, H]
-        self.state = Some(state);
-        features
+    fn team_rows(&mut self, grid: &[f32], vec: &[f32], teams: &[usize]) -> Vec<f32> {
+        self.net.recurrent(grid, vec, teams, &mut self.state)
     }
 
-    /// The head's Q-values `[n, 1, A]` of `features` `[n, 1, H]` with `message` `[n, 1, M]`.
-    pub(crate) fn head(&self, features: Tensor<3>, message: Tensor<3>) -> Tensor<3> {
+    /// The head's Q-values `[n, A]` of `features` `[n, H]` with `message` `[n, M]`.
+    pub(crate) fn head(&self, features: &[f32], message: &[f32]) -> Vec<f32> {
         self.net.head(features, message)
-    }
-
-    /// The device the network lives on.
-    pub(crate) fn device(&self) -> &Device {
-        &self.device
     }
 }
 
@@ -311,7 +293,7 @@ impl Turns {
         rank: usize,
         episodes: &[usize],
         policy: &Policy,
-        features: &Tensor<3>,
+        features: &[f32],
         obs: &[&ObsBuffers],
         epsilon: f64,
         rng: &mut ChaCha8Rng,
@@ -325,18 +307,15 @@ impl Turns {
         if episodes.is_empty() {
             return;
         }
-        let device = &policy.device;
-        let n = episodes.len();
-        let picked: Vec<i64> =
-            episodes.iter().map(|&e| (self.offsets[e] + obs[e].order[rank]) as i64).collect();
-        let picked = Tensor::<1, Int>::from_data(TensorData::new(picked, [n]), device);
-        let feat = features.clone().select(0, picked); // [n, 1, H]
-        let msg: Vec<f32> = episodes
-            .iter()
-            .flat_map(|&e| self.messages[e * msg_dim..(e + 1) * msg_dim].iter().copied())
-            .collect();
-        let msg = tensor3(msg, [n, 1, msg_dim], device); // [n, 1, M]
-        let mut q_all = to_vec(policy.net.head(feat, msg)); // [n, 1, A]
+        let hidden = cfg.lstm_hidden;
+        let mut feat = Vec::with_capacity(episodes.len() * hidden);
+        let mut msg = Vec::with_capacity(episodes.len() * msg_dim);
+        for &e in episodes {
+            let row = self.offsets[e] + obs[e].order[rank];
+            feat.extend_from_slice(&features[row * hidden..(row + 1) * hidden]);
+            msg.extend_from_slice(&self.messages[e * msg_dim..(e + 1) * msg_dim]);
+        }
+        let mut q_all = policy.head(&feat, &msg); // [n, A]
         for (i, &e) in episodes.iter().enumerate() {
             let agent_idx = obs[e].order[rank];
             let row = self.offsets[e] + agent_idx;

@@ -156,7 +156,7 @@ pub fn load_policy(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let net = apply(expected.init(&mut rng, device), &file.online, path, "online")?;
-    Ok(Policy::new(net, expected.clone(), device))
+    Ok(Policy::new(&net, expected.clone()))
 }
 
 /// Load the acting policy of a checkpoint or policy file with the network its header names,

@@ -209,7 +209,7 @@ impl Learner {
         }
         let updates = self.counters.updates;
         match &mut c.policy {
-            Some(policy) if c.weights_of != updates => policy.set_net(self.online.valid()),
+            Some(policy) if c.weights_of != updates => policy.set_net(&self.online.valid()),
             Some(_) => {}
             None => c.policy = Some(self.policy()),
         }

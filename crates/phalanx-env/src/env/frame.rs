@@ -30,19 +30,36 @@ pub(crate) const RADIUS: i32 = 16;
 /// Side of a frame goal's window.
 const SIDE: usize = (2 * RADIUS + 1) as usize;
 
+/// Side of a window with its border of blocked cells (the BFS never leaves it).
+const PADDED: usize = SIDE + 2;
+
+/// A window's cells (`PADDED × PADDED`, with the border).
+const CELLS: usize = PADDED * PADDED;
+
 /// The frame of the current state (see the module docs); empty until
 /// [`Env::update_frame`].
 #[derive(Debug, Clone, Default)]
 pub(super) struct Frame {
     /// Each agent's frame goal.
     goals: Vec<Cell>,
-    /// Per agent, `SIDE × SIDE` BFS distances from its frame goal, row-major from the
-    /// window's bottom-left cell `goal - (R, R)`.
+    /// Per agent, `PADDED × PADDED` BFS distances from its frame goal, row-major from the
+    /// window's bottom-left cell `goal - (R, R)` at `(1, 1)` (a border around it).
     dist: Vec<u32>,
     /// The BFS queue (window indices).
     queue: Vec<u32>,
+    /// Which cells of the window being searched are free (the border is not).
+    free: Vec<bool>,
+    /// The frame goal each agent's window was last searched from.
+    searched: Vec<Option<Cell>>,
     /// Whether each agent stands on its frame goal.
     on_goal: Vec<bool>,
+}
+
+impl Frame {
+    /// Forgets the searched windows (the map changed).
+    pub(super) fn forget(&mut self) {
+        self.searched.clear();
+    }
 }
 
 impl Env {
@@ -58,10 +75,18 @@ impl Env {
         let mut frame = std::mem::take(&mut self.frame);
         frame.goals.clear();
         frame.goals.extend(self.goals.iter().map(|g| g.offset(ox, oy)));
-        frame.dist.resize(n * SIDE * SIDE, UNREACHABLE);
-        frame.queue.resize(SIDE * SIDE, 0);
-        for (agent, window) in frame.dist.chunks_exact_mut(SIDE * SIDE).enumerate() {
-            self.window_bfs(frame.goals[agent], window, &mut frame.queue);
+        frame.dist.resize(n * CELLS, UNREACHABLE);
+        frame.queue.resize(CELLS, 0);
+        frame.free.resize(CELLS, false);
+        frame.searched.resize(n, None);
+        for (agent, window) in frame.dist.chunks_exact_mut(CELLS).enumerate() {
+            // The map does not change within an episode (resets clear `searched`), so a
+            // window searched from the same goal is still right.
+            let goal = frame.goals[agent];
+            if frame.searched[agent] != Some(goal) {
+                self.window_bfs(goal, window, &mut frame.queue, &mut frame.free);
+                frame.searched[agent] = Some(goal);
+            }
         }
         frame.on_goal.clear();
         frame.on_goal.extend(self.pos.iter().zip(&frame.goals).map(|(p, g)| p == g));
@@ -89,7 +114,7 @@ impl Env {
         debug_assert_eq!(CHANNELS, 4);
         let here = self.pos[agent];
         let goal = self.frame.goals[agent];
-        let window = &self.frame.dist[agent * SIDE * SIDE..(agent + 1) * SIDE * SIDE];
+        let window = &self.frame.dist[agent * CELLS..(agent + 1) * CELLS];
         let manhattan = |c: Cell| (c.x - goal.x).unsigned_abs() + (c.y - goal.y).unsigned_abs();
         let own = window_at(window, goal, here);
         let k = (f - 1) as f32;
@@ -144,34 +169,40 @@ impl Env {
     }
 
     /// BFS from `source` over the free cells of its window (the source itself counts as
-    /// free); `window` is overwritten.
-    fn window_bfs(&self, source: Cell, window: &mut [u32], queue: &mut [u32]) {
-        window.fill(UNREACHABLE);
+    /// free); `window` is overwritten (`PADDED × PADDED`).
+    fn window_bfs(&self, source: Cell, window: &mut [u32], queue: &mut [u32], free: &mut [bool]) {
+        free.fill(false);
         let origin = source.offset(-RADIUS, -RADIUS);
-        let start = (RADIUS as usize) * SIDE + RADIUS as usize;
+        let (width, height) = (self.width as i32, self.height as i32);
+        let (x0, x1) = (origin.x.max(0), (origin.x + SIDE as i32).min(width));
+        for wy in 0..SIDE {
+            let y = origin.y + wy as i32;
+            if !(0..height).contains(&y) || x0 >= x1 {
+                continue;
+            }
+            let at = super::padded_idx(self.pw, self.pad, Cell::new(x0, y)) as usize;
+            let map = &self.blocked[at..at + (x1 - x0) as usize];
+            let row = &mut free[(wy + 1) * PADDED + (x0 - origin.x) as usize + 1..][..map.len()];
+            for (cell, &blocked) in row.iter_mut().zip(map) {
+                *cell = blocked == 0;
+            }
+        }
+        let start = (RADIUS as usize + 1) * (PADDED + 1);
+        free[start] = true;
+        window.fill(UNREACHABLE);
         window[start] = 0;
         queue[0] = start as u32;
         let (mut head, mut tail) = (0, 1);
         while head < tail {
             let id = queue[head] as usize;
             head += 1;
-            let (x, y) = ((id % SIDE) as i32, (id / SIDE) as i32);
             let next = window[id] + 1;
-            for (nx, ny) in [(x, y + 1), (x, y - 1), (x - 1, y), (x + 1, y)] {
-                if !(0..SIDE as i32).contains(&nx) || !(0..SIDE as i32).contains(&ny) {
-                    continue;
+            for n in [id + PADDED, id - PADDED, id - 1, id + 1] {
+                if free[n] && window[n] == UNREACHABLE {
+                    window[n] = next;
+                    queue[tail] = n as u32;
+                    tail += 1;
                 }
-                let n = ny as usize * SIDE + nx as usize;
-                if window[n] != UNREACHABLE {
-                    continue;
-                }
-                if !self.padded_free(origin.offset(nx, ny)) {
-                    window[n] = BLOCKED;
-                    continue;
-                }
-                window[n] = next;
-                queue[tail] = n as u32;
-                tail += 1;
             }
         }
     }
@@ -184,7 +215,7 @@ fn window_at(window: &[u32], goal: Cell, cell: Cell) -> Option<u32> {
     if !(0..SIDE as i32).contains(&x) || !(0..SIDE as i32).contains(&y) {
         return None;
     }
-    let d = window[y as usize * SIDE + x as usize];
+    let d = window[(y as usize + 1) * PADDED + x as usize + 1];
     (d < BLOCKED).then_some(d)
 }
 

@@ -85,3 +85,48 @@ fn observations_stay_bounded_on_a_large_map() {
     }
     assert_eq!(inst.grid().width(), 256);
 }
+
+/// An environment reset on the map and goals of its last episode keeps its obstacles,
+/// distance maps and frame windows; a reset on another map with the same goals must not:
+/// every observation (the formation frame's included) equals a fresh environment's.
+#[test]
+fn a_reset_keeps_the_distance_maps_of_the_same_map_only() {
+    let config = GenConfig { size: 24, density: 0.15, n_agents: 3, seed: 5, fov: 9 };
+    let a = phalanx_gen::generate(&config).unwrap();
+    // The same starts and goals on a map with a wall beside the first agent.
+    let mut grid = a.grid().clone();
+    let keep = |cell| a.starts().contains(&cell) || a.goals().contains(&cell);
+    let start = a.starts()[0];
+    for dy in -2..=2 {
+        for dx in [-2, 2] {
+            let cell = c(start.x + dx, start.y + dy);
+            if grid.in_bounds(cell) && !keep(cell) {
+                grid.set_blocked(cell, true);
+            }
+        }
+    }
+    let b = phalanx_core::Instance::new(grid, a.starts().to_vec(), a.goals().to_vec()).unwrap();
+    assert_ne!(a.grid(), b.grid());
+    let views = |env: &mut Env| {
+        let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
+        env.observe(&mut obs);
+        let mut frames = vec![0.0; env.n_agents() * obs.shape.grid_len()];
+        env.update_frame(0, env.positions()[0]);
+        for (agent, out) in frames.chunks_exact_mut(obs.shape.grid_len()).enumerate() {
+            env.write_frame_grid(agent, out);
+        }
+        let costs: Vec<u32> = (0..env.n_agents()).map(|i| env.cost_to_go(i)).collect();
+        (obs.grid, frames, costs)
+    };
+    let fresh = |inst: &phalanx_core::Instance| {
+        let mut env = Env::new(EnvConfig::default()).unwrap();
+        env.reset(inst).unwrap();
+        views(&mut env)
+    };
+    let mut env = Env::new(EnvConfig::default()).unwrap();
+    for (i, inst) in [&a, &a, &b, &b, &a].into_iter().enumerate() {
+        env.reset(inst).unwrap();
+        assert!(views(&mut env) == fresh(inst), "reset {i} differs from a fresh environment");
+    }
+    assert!(fresh(&a) != fresh(&b), "the wall changes what the agents see");
+}

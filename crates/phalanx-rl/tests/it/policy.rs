@@ -17,7 +17,7 @@ fn policy() -> phalanx_rl::Policy {
 fn policy_of(centralised: bool) -> phalanx_rl::Policy {
     let config = QNetConfig { centralised, ..QNetConfig::default() };
     let net = config.init(&mut ChaCha8Rng::seed_from_u64(3), &plain_device());
-    phalanx_rl::Policy::new(net, config, &plain_device())
+    phalanx_rl::Policy::new(&net, config)
 }
 
 /// Teams of 2, 3 and 4 agents on pool maps, each after a reset from its own seed.
