@@ -41,7 +41,9 @@ impl Dense {
     }
 }
 
-/// A 3 × 3 convolution, stride 1, "same" padding: `weight` `[c_out, c_in, 3, 3]`.
+/// A 3 × 3 convolution, stride 1, "same" padding, run as a product of each cell's 3 × 3
+/// patch (zeros beyond the edge) with the kernels: `weight` `[c_in × 9, c_out]` (the input
+/// channel, then the kernel row and column).
 #[derive(Clone, Debug)]
 pub(crate) struct Conv {
     pub(crate) c_in: usize,
@@ -51,35 +53,43 @@ pub(crate) struct Conv {
 }
 
 impl Conv {
+    /// The layer of burn's kernels `[c_out, c_in, 3, 3]`.
+    pub(crate) fn of_kernels(c_in: usize, c_out: usize, kernels: &[f32], bias: Vec<f32>) -> Conv {
+        let patch = c_in * 9;
+        let mut weight = vec![0.0; patch * c_out];
+        for co in 0..c_out {
+            for p in 0..patch {
+                weight[p * c_out + co] = kernels[co * patch + p];
+            }
+        }
+        Conv { c_in, c_out, weight, bias }
+    }
+
     /// One row's maps `x` `[c_in, fov, fov]` to `out` `[c_out, fov, fov]`, with ReLU.
     fn forward_relu(&self, fov: usize, x: &[f32], out: &mut [f32]) {
-        let area = fov * fov;
-        for (co, map) in out.chunks_exact_mut(area).enumerate() {
-            map.fill(self.bias[co]);
+        let (area, patch) = (fov * fov, self.c_in * 9);
+        let mut patches = vec![0.0; area * patch];
+        for (cell, row) in patches.chunks_exact_mut(patch).enumerate() {
+            let (y, x_at) = (cell / fov, cell % fov);
             for ci in 0..self.c_in {
-                let input = &x[ci * area..(ci + 1) * area];
-                let kernel = &self.weight[(co * self.c_in + ci) * 9..][..9];
-                for y in 0..fov {
-                    for dy in 0..3 {
-                        let Some(sy) = (y + dy).checked_sub(1).filter(|&sy| sy < fov) else {
-                            continue;
-                        };
-                        for x_out in 0..fov {
-                            for dx in 0..3 {
-                                let Some(sx) = (x_out + dx).checked_sub(1).filter(|&sx| sx < fov)
-                                else {
-                                    continue;
-                                };
-                                let at = y * fov + x_out;
-                                map[at] =
-                                    input[sy * fov + sx].mul_add(kernel[dy * 3 + dx], map[at]);
-                            }
+                for dy in 0..3 {
+                    for dx in 0..3 {
+                        let (sy, sx) = ((y + dy).wrapping_sub(1), (x_at + dx).wrapping_sub(1));
+                        if sy < fov && sx < fov {
+                            row[ci * 9 + dy * 3 + dx] = x[ci * area + sy * fov + sx];
                         }
                     }
                 }
             }
-            for value in map.iter_mut() {
-                *value = value.max(0.0);
+        }
+        let mut maps = vec![0.0; area * self.c_out];
+        for cell in maps.chunks_exact_mut(self.c_out) {
+            cell.copy_from_slice(&self.bias);
+        }
+        matmul_acc(&patches, patch, &self.weight, self.c_out, &mut maps); // [area, c_out]
+        for (cell, values) in maps.chunks_exact(self.c_out).enumerate() {
+            for (co, &v) in values.iter().enumerate() {
+                out[co * area + cell] = v.max(0.0);
             }
         }
     }
@@ -365,32 +375,18 @@ vectorised! {
     }
 }
 
-/// [`matmul_acc`] of `R` rows: whole tiles of [`TILE`] outputs with the accumulators in
-/// registers, then the outputs left over.
+/// [`matmul_acc`] of `R` rows: whole tiles of [`TILE`] outputs, then of 16 (one AVX-512
+/// register), with the accumulators in registers; then the outputs left over.
 #[inline(always)]
 fn tile<const R: usize>(x: &[f32], d_in: usize, w: &[f32], d_out: usize, out: &mut [f32]) {
     let mut j0 = 0;
     while j0 + TILE <= d_out {
-        let mut acc = [[0.0_f32; TILE]; R];
-        for (i, acc) in acc.iter_mut().enumerate() {
-            acc.copy_from_slice(&out[i * d_out + j0..i * d_out + j0 + TILE]);
-        }
-        for k in 0..d_in {
-            let v: [f32; R] = std::array::from_fn(|i| x[i * d_in + k]);
-            if v.iter().all(|&v| v == 0.0) {
-                continue;
-            }
-            let wk: &[f32; TILE] = w[k * d_out + j0..][..TILE].try_into().expect("a tile");
-            for (acc, &v) in acc.iter_mut().zip(&v) {
-                for (a, &wv) in acc.iter_mut().zip(wk) {
-                    *a = v.mul_add(wv, *a);
-                }
-            }
-        }
-        for (i, acc) in acc.iter().enumerate() {
-            out[i * d_out + j0..i * d_out + j0 + TILE].copy_from_slice(acc);
-        }
+        block::<R, TILE>(x, d_in, w, d_out, out, j0);
         j0 += TILE;
+    }
+    while j0 + 16 <= d_out {
+        block::<R, 16>(x, d_in, w, d_out, out, j0);
+        j0 += 16;
     }
     if j0 < d_out {
         for i in 0..R {
@@ -403,6 +399,37 @@ fn tile<const R: usize>(x: &[f32], d_in: usize, w: &[f32], d_out: usize, out: &m
                 }
             }
         }
+    }
+}
+
+/// The outputs `j0..j0 + W` of `R` rows, accumulated in registers over every input.
+#[inline(always)]
+fn block<const R: usize, const W: usize>(
+    x: &[f32],
+    d_in: usize,
+    w: &[f32],
+    d_out: usize,
+    out: &mut [f32],
+    j0: usize,
+) {
+    let mut acc = [[0.0_f32; W]; R];
+    for (i, acc) in acc.iter_mut().enumerate() {
+        acc.copy_from_slice(&out[i * d_out + j0..i * d_out + j0 + W]);
+    }
+    for k in 0..d_in {
+        let v: [f32; R] = std::array::from_fn(|i| x[i * d_in + k]);
+        if v.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        let wk: &[f32; W] = w[k * d_out + j0..][..W].try_into().expect("a tile");
+        for (acc, &v) in acc.iter_mut().zip(&v) {
+            for (a, &wv) in acc.iter_mut().zip(wk) {
+                *a = v.mul_add(wv, *a);
+            }
+        }
+    }
+    for (i, acc) in acc.iter().enumerate() {
+        out[i * d_out + j0..i * d_out + j0 + W].copy_from_slice(acc);
     }
 }
 

@@ -405,7 +405,7 @@ impl QNet {
             .map(|conv| {
                 let [c_out, c_in, _, _] = conv.weight.dims();
                 let bias = conv.bias.as_ref().map_or_else(|| vec![0.0; c_out], |b| to_vec(b.val()));
-                Conv { c_in, c_out, weight: to_vec(conv.weight.val()), bias }
+                Conv::of_kernels(c_in, c_out, &to_vec(conv.weight.val()), bias)
             })
             .collect();
         let lstm = self
