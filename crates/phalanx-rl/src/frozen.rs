@@ -18,8 +18,9 @@
 //!   error about 2 × 10⁻⁷) instead of the C library's, so that they vectorise and give the same
 //!   bits on every platform.
 //!
-//! It agrees with [`crate::QNet::forward_recurrent`] and [`crate::QNet::head`] to rounding (tested to 10⁻⁴
-//! on every kind of network); training keeps burn's network, whose gradients it needs.
+//! It agrees with [`crate::QNet::forward_recurrent`] and [`crate::QNet::head`] to rounding
+//! (tested to 10⁻⁴ on every kind of network); training keeps burn's network, whose gradients
+//! it needs.
 
 /// A dense layer: `out = bias + x · weight`, `weight` `[d_in, d_out]` row-major.
 #[derive(Clone, Debug)]
@@ -105,8 +106,8 @@ pub(crate) struct Lstm {
     pub(crate) hidden: usize,
 }
 
-/// The weights of a [`crate::QNet`] (`QNet::frozen`) as plain arrays, for acting ([`FrozenNet::recurrent`],
-/// [`FrozenNet::head`]).
+/// The weights of a [`crate::QNet`] (`QNet::frozen`) as plain arrays, for acting
+/// ([`FrozenNet::recurrent`], [`FrozenNet::head`]).
 #[derive(Clone, Debug)]
 pub(crate) struct FrozenNet {
     pub(crate) channels: usize,
