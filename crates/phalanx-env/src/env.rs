@@ -226,9 +226,7 @@ impl Env {
         self.step_limit = self.config.step_limit.unwrap_or(3 * grid.side());
         // The obstacles and distance maps depend on the map and the goals only: an episode on
         // the same ones as the last (the test-time rollouts of one instance) keeps them.
-        let same_map = self.searched_map.as_ref() == Some(grid)
-            && self.goals == instance.goals()
-            && self.dist.len() == n * n_padded;
+        let same_map = self.searched_map.as_ref() == Some(grid) && self.goals == instance.goals();
         if !same_map {
             self.searched_map = None;
             self.search_map(instance);

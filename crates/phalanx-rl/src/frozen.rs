@@ -350,7 +350,7 @@ vectorised! {
     /// `[rows, d_out]`. Each output adds its products in ascending input order, one fused
     /// multiply-add each; an input that is zero in every row of a tile is skipped (adding
     /// `0 · w` leaves a sum as it is, up to the sign of a zero, as the weights are finite).
-    pub(crate) fn matmul_acc / matmul_acc_at(
+    fn matmul_acc / matmul_acc_at(
         x: &[f32],
         d_in: usize,
         w: &[f32],
@@ -450,7 +450,7 @@ fn tanh(x: f32) -> f32 {
 /// 2`, `e^r` by its Taylor polynomial of degree 7, times `2^n` built in the exponent bits.
 /// Inputs are clamped to `[−87, 88]` (the result stays a normal `f32`).
 #[inline(always)]
-pub(crate) fn exp(x: f32) -> f32 {
+fn exp(x: f32) -> f32 {
     const LN2_HI: f32 = 0.693_145_75;
     const LN2_LO: f32 = 1.428_606_8e-6;
     let x = x.clamp(-87.0, 88.0);

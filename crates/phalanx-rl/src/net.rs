@@ -394,18 +394,22 @@ impl QNet {
 
     /// The weights as plain arrays, for acting (`config`: the network's sizes).
     pub(crate) fn frozen(&self, config: &QNetConfig) -> FrozenNet {
+        // A layer's bias, zeros where it has none.
+        let bias = |bias: &Option<Param<Tensor<1>>>, n: usize| {
+            bias.as_ref().map_or_else(|| vec![0.0; n], |b| to_vec(b.val()))
+        };
         let dense = |layer: &Linear| {
             let [d_in, d_out] = layer.weight.dims();
-            let bias = layer.bias.as_ref().map_or_else(|| vec![0.0; d_out], |b| to_vec(b.val()));
-            Dense { d_in, d_out, weight: to_vec(layer.weight.val()), bias }
+            let weight = to_vec(layer.weight.val());
+            Dense { d_in, d_out, weight, bias: bias(&layer.bias, d_out) }
         };
         let convs = self
             .convs
             .iter()
             .map(|conv| {
                 let [c_out, c_in, _, _] = conv.weight.dims();
-                let bias = conv.bias.as_ref().map_or_else(|| vec![0.0; c_out], |b| to_vec(b.val()));
-                Conv::of_kernels(c_in, c_out, &to_vec(conv.weight.val()), bias)
+                let kernels = to_vec(conv.weight.val());
+                Conv::of_kernels(c_in, c_out, &kernels, bias(&conv.bias, c_out))
             })
             .collect();
         let lstm = self
