@@ -77,11 +77,26 @@ pub struct EnvConfig {
     pub formation_weight: f64,
     /// Steps after which an episode is truncated; `None` means `3 × map side` (the paper).
     pub step_limit: Option<u32>,
+    /// The meta task's idle cost `c`: each step, an agent off its goal that did not get closer
+    /// to it (it waited, moved sideways or away, or its move was cancelled) loses `c`; unused by
+    /// the other tasks. Default 0 (Table I). Not written when 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub idle_cost: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 impl Default for EnvConfig {
     fn default() -> EnvConfig {
-        EnvConfig { fov: 9, task: Task::PathFinding, formation_weight: 1.0, step_limit: None }
+        EnvConfig {
+            fov: 9,
+            task: Task::PathFinding,
+            formation_weight: 1.0,
+            step_limit: None,
+            idle_cost: 0.0,
+        }
     }
 }
 

@@ -475,6 +475,7 @@ impl Env {
         let task = self.config.task;
         let loss = self.loss as f32;
         let w_f = self.config.formation_weight as f32;
+        let c_idle = self.config.idle_cost as f32;
         let mut team = 0.0;
         for (i, &action) in actions.iter().enumerate() {
             let r = if self.cancelled[i] {
@@ -505,7 +506,10 @@ impl Env {
                         -loss
                     }
                 }
-                Task::Meta => -w_f * loss,
+                Task::Meta => {
+                    let idle = !self.on_goal[i] && !self.closer[i];
+                    -w_f * loss - if idle { c_idle } else { 0.0 }
+                }
             };
             self.rewards[i] = r;
             team += r;

@@ -111,7 +111,8 @@ impl World {
                 "formation_weight {formation_weight} is not a non-negative number"
             )));
         }
-        let env_config = EnvConfig { fov, task, formation_weight, step_limit: None };
+        let env_config =
+            EnvConfig { fov, task, formation_weight, step_limit: None, idle_cost: 0.0 };
         let env = Env::new(env_config).map_err(|err| error(&err))?;
         let source = match instance {
             Some(path) => {

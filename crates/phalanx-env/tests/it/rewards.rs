@@ -56,6 +56,27 @@ fn meta_rewards_weight_the_formation_loss() {
 }
 
 #[test]
+fn meta_idle_cost_charges_off_goal_agents_that_did_not_get_closer() {
+    // Agent 0 waits off its goal, agent 1 waits on its goal.
+    let inst = instance(5, 1, &[], &[c(0, 0), c(4, 0)], &[c(2, 0), c(4, 0)]);
+    let mut env = Env::new(EnvConfig {
+        task: Task::Meta,
+        formation_weight: 2.0,
+        idle_cost: 0.5,
+        ..EnvConfig::default()
+    })
+    .unwrap();
+    env.reset(&inst).unwrap();
+    let step = env.step(&[Wait, Wait]);
+    let lf = step.info.formation_loss as f32;
+    assert_eq!(step.rewards, &[-2.0 * lf - 0.5, -2.0 * lf]);
+    // Moving closer is not idle.
+    let step = env.step(&[Right, Wait]);
+    let lf = step.info.formation_loss as f32;
+    assert_eq!(step.rewards, &[1.0 - 2.0 * lf, -2.0 * lf]);
+}
+
+#[test]
 fn truncated_at_three_times_the_side() {
     let inst = instance(4, 2, &[], &[c(0, 0)], &[c(3, 1)]);
     let mut env = env(Task::PathFinding);
