@@ -103,6 +103,10 @@ pub(crate) struct TrainCmd {
     /// Meta, e2e and ctce: train one policy with the formation weight W for every team size.
     #[arg(long, value_name = "W", value_parser = util::non_negative)]
     formation_weight: Option<f64>,
+    /// Meta, e2e and ctce: the idle cost C, lost per agent and step off its goal without
+    /// getting closer (`env.idle_cost`; default 0, Table I's reward).
+    #[arg(long, value_name = "C", value_parser = util::non_negative)]
+    idle_cost: Option<f64>,
 }
 
 /// Runs `phalanx train`.
@@ -118,15 +122,20 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     if let Some(steps) = cmd.steps {
         config.steps = steps;
     }
-    for (flag, value) in
-        [("--weight-multiple", cmd.weight_multiple), ("--formation-weight", cmd.formation_weight)]
-    {
+    for (flag, value) in [
+        ("--weight-multiple", cmd.weight_multiple),
+        ("--formation-weight", cmd.formation_weight),
+        ("--idle-cost", cmd.idle_cost),
+    ] {
         if let Some(v) = value {
             anyhow::ensure!(
                 task == TrainTask::Meta || task.is_end_to_end(),
                 "{flag} {v} is for `phalanx train meta`, `e2e` and `ctce`"
             );
         }
+    }
+    if let Some(c) = cmd.idle_cost {
+        config.env.idle_cost = c;
     }
     if let Some(multiple) = cmd.weight_multiple {
         config.meta.multiples = Multiples::Fixed { multiple };

@@ -77,11 +77,32 @@ pub struct EnvConfig {
     pub formation_weight: f64,
     /// Steps after which an episode is truncated; `None` means `3 × map side` (the paper).
     pub step_limit: Option<u32>,
-    /// The meta task's idle cost `c`: each step, an agent off its goal that did not get closer
-    /// to it (it waited, moved sideways or away, or its move was cancelled) loses `c`; unused by
-    /// the other tasks. Default 0 (Table I). Not written when 0.
+    /// The meta task's idle cost `c`: each step, an agent off its goal that is idle (see
+    /// `idle_scope`) loses `c`; unused by the other tasks. Default 0 (Table I). Not written
+    /// when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub idle_cost: f64,
+    /// What counts as idle for `idle_cost`. Default: the team. Not written when the default.
+    #[serde(skip_serializing_if = "IdleScope::is_team")]
+    pub idle_scope: IdleScope,
+}
+
+/// What the meta task's idle cost charges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum IdleScope {
+    /// A step in which no agent of the team got closer to its goal: every agent off its goal
+    /// pays (a team that stands, in formation or not).
+    #[default]
+    Team,
+    /// Each agent off its goal that did not get closer pays, whatever the others did.
+    Agent,
+}
+
+impl IdleScope {
+    fn is_team(&self) -> bool {
+        *self == IdleScope::Team
+    }
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -96,6 +117,7 @@ impl Default for EnvConfig {
             formation_weight: 1.0,
             step_limit: None,
             idle_cost: 0.0,
+            idle_scope: IdleScope::Team,
         }
     }
 }

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::marl::{ObsBuffers, ObsShape};
 use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, VECTOR_LEN};
-use crate::{Clip, EnvConfig, EnvError, LeaderRule, Task};
+use crate::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
 
 mod frame;
 
@@ -476,6 +476,7 @@ impl Env {
         let loss = self.loss as f32;
         let w_f = self.config.formation_weight as f32;
         let c_idle = self.config.idle_cost as f32;
+        let team_idle = !self.closer.iter().any(|&c| c);
         let mut team = 0.0;
         for (i, &action) in actions.iter().enumerate() {
             let r = if self.cancelled[i] {
@@ -507,7 +508,11 @@ impl Env {
                     }
                 }
                 Task::Meta => {
-                    let idle = !self.on_goal[i] && !self.closer[i];
+                    let idle = !self.on_goal[i]
+                        && match self.config.idle_scope {
+                            IdleScope::Team => team_idle,
+                            IdleScope::Agent => !self.closer[i],
+                        };
                     -w_f * loss - if idle { c_idle } else { 0.0 }
                 }
             };

@@ -40,7 +40,7 @@ mod pool;
 pub mod sim;
 mod task;
 
-pub use config::{Clip, EnvConfig, EnvError, LeaderRule, Task};
+pub use config::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
 pub use env::{Env, MAX_AGENTS, Step, StepInfo};
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use hier::{Choice, HierEnv, clip_claimed, meta_vector};

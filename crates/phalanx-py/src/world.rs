@@ -111,8 +111,7 @@ impl World {
                 "formation_weight {formation_weight} is not a non-negative number"
             )));
         }
-        let env_config =
-            EnvConfig { fov, task, formation_weight, step_limit: None, idle_cost: 0.0 };
+        let env_config = EnvConfig { fov, task, formation_weight, ..EnvConfig::default() };
         let env = Env::new(env_config).map_err(|err| error(&err))?;
         let source = match instance {
             Some(path) => {

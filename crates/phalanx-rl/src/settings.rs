@@ -258,6 +258,10 @@ impl TrainConfig {
         {
             return invalid(format!("shaping {shaping} must be finite"));
         }
+        let idle = self.env.idle_cost;
+        if !(idle.is_finite() && idle >= 0.0) {
+            return invalid(format!("env.idle_cost {idle} must be a non-negative number"));
+        }
         match self.meta.multiples {
             Multiples::Fixed { multiple } if !(multiple.is_finite() && multiple >= 0.0) => {
                 return invalid(format!("meta.multiples: multiple {multiple} is not a weight"));

@@ -1,7 +1,7 @@
 //! The rewards of Table I, per task, on hand-made corridors.
 
-use phalanx_core::Action::{Left, Right, Wait};
-use phalanx_env::{Clip, Env, EnvConfig, ObsBuffers, Task};
+use phalanx_core::Action::{self, Left, Right, Up, Wait};
+use phalanx_env::{Clip, Env, EnvConfig, IdleScope, ObsBuffers, Task};
 
 use crate::{c, instance};
 
@@ -56,24 +56,42 @@ fn meta_rewards_weight_the_formation_loss() {
 }
 
 #[test]
-fn meta_idle_cost_charges_off_goal_agents_that_did_not_get_closer() {
-    // Agent 0 waits off its goal, agent 1 waits on its goal.
-    let inst = instance(5, 1, &[], &[c(0, 0), c(4, 0)], &[c(2, 0), c(4, 0)]);
-    let mut env = Env::new(EnvConfig {
-        task: Task::Meta,
-        formation_weight: 2.0,
-        idle_cost: 0.5,
-        ..EnvConfig::default()
-    })
-    .unwrap();
-    env.reset(&inst).unwrap();
-    let step = env.step(&[Wait, Wait]);
-    let lf = step.info.formation_loss as f32;
-    assert_eq!(step.rewards, &[-2.0 * lf - 0.5, -2.0 * lf]);
-    // Moving closer is not idle.
-    let step = env.step(&[Right, Wait]);
-    let lf = step.info.formation_loss as f32;
-    assert_eq!(step.rewards, &[1.0 - 2.0 * lf, -2.0 * lf]);
+fn meta_idle_cost_charges_a_team_that_stands_or_each_agent_that_does() {
+    // Agents 0 and 1 start off their goals, agent 2 on its goal.
+    let inst = instance(6, 5, &[], &[c(0, 0), c(0, 2), c(5, 4)], &[c(2, 0), c(2, 2), c(5, 4)]);
+    // Each agent's reward less the formation term, as (progress, idle cost).
+    let rewards = |scope: IdleScope, actions: &[Action]| {
+        let mut env = Env::new(EnvConfig {
+            task: Task::Meta,
+            formation_weight: 2.0,
+            idle_cost: 0.5,
+            idle_scope: scope,
+            ..EnvConfig::default()
+        })
+        .unwrap();
+        env.reset(&inst).unwrap();
+        let step = env.step(actions);
+        let w_lf = 2.0 * step.info.formation_loss as f32;
+        // The environment adds `-w · L_f - idle` to the progress reward.
+        let split = |r: f32| {
+            [(0.0, 0.0), (1.0, 0.0), (0.0, 0.5), (1.0, 0.5)]
+                .into_iter()
+                .find(|&(progress, idle): &(f32, f32)| progress + (-w_lf - idle) == r)
+                .unwrap_or((f32::NAN, f32::NAN))
+        };
+        step.rewards.iter().map(|&r| split(r)).collect::<Vec<(f32, f32)>>()
+    };
+    // Nobody gets closer: both scopes charge the agents off their goals.
+    for scope in [IdleScope::Team, IdleScope::Agent] {
+        assert_eq!(rewards(scope, &[Wait, Wait, Wait]), [(0.0, 0.5), (0.0, 0.5), (0.0, 0.0)]);
+    }
+    // Agent 0 gets closer, agent 1 waits: the team moved, agent 1 did not.
+    let moved = [Right, Wait, Wait];
+    assert_eq!(rewards(IdleScope::Team, &moved), [(1.0, 0.0), (0.0, 0.0), (0.0, 0.0)]);
+    assert_eq!(rewards(IdleScope::Agent, &moved), [(1.0, 0.0), (0.0, 0.5), (0.0, 0.0)]);
+    // Moving away is idle too.
+    let away = [Right, Up, Wait];
+    assert_eq!(rewards(IdleScope::Agent, &away), [(1.0, 0.0), (0.0, 0.5), (0.0, 0.0)]);
 }
 
 #[test]
