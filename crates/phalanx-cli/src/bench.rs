@@ -137,6 +137,11 @@ pub(crate) struct BenchArgs {
     /// The meta policy's directory (default: the shipped models/meta, if any).
     #[arg(long, value_name = "DIR")]
     meta: Option<PathBuf>,
+    /// A front of meta policies, one per subdirectory, each trained at one multiple of w_f
+    /// (`phalanx train meta --weight-multiple M --out DIR/M`): `hrl:M` runs the one trained
+    /// at M (default: the shipped models/meta-front, if any).
+    #[arg(long, value_name = "DIR")]
+    meta_front: Option<PathBuf>,
     /// The end-to-end baseline's directory for the method `e2e` (default: the shipped
     /// models/e2e).
     #[arg(long, value_name = "DIR")]
@@ -211,10 +216,25 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         },
     };
     let meta_file = meta_file(args.meta.as_deref())?;
+    let meta_front = match &args.meta_front {
+        Some(dir) => Some(models::MetaFront::load(Some(dir))?),
+        None => models::MetaFront::load(None).ok(),
+    };
     let names = match &args.methods {
         Some(list) => list.clone(),
         None => {
-            let mut names = default_methods(name, meta_file.is_some());
+            let hierarchy = if name == "pareto"
+                && let Some(front) = &meta_front
+            {
+                Hierarchies::Front(front.multiples())
+            } else {
+                match &meta_file {
+                    Some(file) if conditioned(file)? => Hierarchies::Conditioned,
+                    Some(_) => Hierarchies::One,
+                    None => Hierarchies::None,
+                }
+            };
+            let mut names = default_methods(name, &hierarchy);
             for (baseline, dir) in [("e2e", &args.e2e), ("ctce", &args.ctce)] {
                 if dir.is_some() || models::weights_file(None, baseline).is_ok() {
                     names.push(baseline.to_owned());
@@ -226,6 +246,7 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
     let sources = Sources {
         jsa_max_side: Some(args.jsa_max_side),
         meta: meta_file.as_deref(),
+        meta_front: meta_front.as_ref(),
         e2e: args.e2e.as_deref(),
         ctce: args.ctce.as_deref(),
     };
@@ -250,6 +271,16 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         // The learned policies by their weights' checksums, not by how their path is spelt,
         // so that a resume from another directory or binary finds the same settings.
         "meta": meta_file.as_deref().map(checksum).transpose()?,
+        "meta_front": meta_front
+            .as_ref()
+            .map(|front| {
+                front
+                    .points
+                    .iter()
+                    .map(|(m, file)| Ok(serde_json::json!([m, checksum(file)?])))
+                    .collect::<anyhow::Result<Vec<_>>>()
+            })
+            .transpose()?,
         "e2e": baseline_checksum(&args.e2e, "e2e")?,
         "ctce": baseline_checksum(&args.ctce, "ctce")?,
         "cases": cases.iter().map(|c| c.label.clone()).collect::<Vec<_>>(),
@@ -362,8 +393,27 @@ pub(crate) fn meta_file(dir: Option<&Path>) -> anyhow::Result<Option<PathBuf>> {
     })
 }
 
+/// Whether the meta policy in `file` reads the weight multiple (serves any `hrl:M`).
+fn conditioned(file: &Path) -> anyhow::Result<bool> {
+    let header = phalanx_rl::policy_file::read_header(file)
+        .with_context(|| format!("reading the meta policy {}", file.display()))?;
+    Ok(header.meta.is_some_and(|info| info.weight.conditioned()))
+}
+
+/// Which meta policies the default methods draw on.
+enum Hierarchies {
+    /// None found.
+    None,
+    /// One at a fixed multiple: `hrl`.
+    One,
+    /// A weight-conditioned one: `hrl:0` … `hrl:3` on the Pareto benchmark.
+    Conditioned,
+    /// A front of fixed-multiple ones: `hrl:M` for each of these multiples.
+    Front(Vec<f64>),
+}
+
 /// The methods run when `--methods` is not given.
-fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
+fn default_methods(benchmark: &str, hierarchy: &Hierarchies) -> Vec<String> {
     let mut names: Vec<String> = if benchmark == "files" {
         ["cbs", "ecbs", "swarm", "pathfinding", "leader"].map(str::to_owned).to_vec()
     } else if benchmark == "scaling" || benchmark == "movingai" {
@@ -377,14 +427,17 @@ fn default_methods(benchmark: &str, meta: bool) -> Vec<String> {
     } else {
         ["cbs", "ecbs", "swarm", "jsa", "pathfinding", "leader"].map(str::to_owned).to_vec()
     };
-    if meta {
-        if benchmark == "pareto" {
-            names.extend(["hrl:0", "hrl:1", "hrl:2", "hrl:3"].map(str::to_owned));
-        } else {
-            names.push("hrl".to_owned());
+    match hierarchy {
+        Hierarchies::None => {
+            util::warn("no meta policy found (models/meta or --meta): the hierarchy is left out");
         }
-    } else {
-        util::warn("no meta policy found (models/meta or --meta): the hierarchy is left out");
+        Hierarchies::Conditioned if benchmark == "pareto" => {
+            names.extend(["hrl:0", "hrl:1", "hrl:2", "hrl:3"].map(str::to_owned));
+        }
+        Hierarchies::Front(multiples) => {
+            names.extend(multiples.iter().map(|m| format!("hrl:{m}")));
+        }
+        Hierarchies::One | Hierarchies::Conditioned => names.push("hrl".to_owned()),
     }
     names
 }

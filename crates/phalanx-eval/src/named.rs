@@ -4,7 +4,7 @@
 //! (suboptimality bound, default 1.2), `swarm`, `astar`, `jsa` (formation first, then
 //! makespan) or `jsa:W` (minimises `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the
 //! scripted rule, closing up above `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`,
-//! default 1), `e2e` (the end-to-end VDN baseline) and `ctce` (the centralised baseline).
+//! default 1; with a front of meta policies, the one trained at `M`), `e2e` (the end-to-end VDN baseline) and `ctce` (the centralised baseline).
 //!
 //! The learned ones are loaded by `phalanx_rl::models` (given files or the shipped models).
 
@@ -13,7 +13,7 @@ use std::path::Path;
 use phalanx_plan::PlannerChoice;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::{astar, cbs, ecbs, swarm};
-use phalanx_rl::models::{self, ModelError};
+use phalanx_rl::models::{self, MetaFront, ModelError};
 use phalanx_rl::{Hierarchy, ScriptedMeta};
 use thiserror::Error;
 
@@ -33,6 +33,8 @@ pub struct Sources<'a> {
     pub jsa_max_side: Option<u32>,
     /// The meta policy of `hrl` (a file or weights directory; `None`: the shipped one).
     pub meta: Option<&'a Path>,
+    /// Meta policies at fixed multiples: `hrl:M` runs the one trained at `M`.
+    pub meta_front: Option<&'a MetaFront>,
     /// The end-to-end policy of `e2e` (a file or weights directory; `None`: the shipped one).
     pub e2e: Option<&'a Path>,
     /// The centralised policy of `ctce` (a file or weights directory; `None`: the shipped one).
@@ -75,6 +77,16 @@ pub enum MethodError {
         spec: String,
         /// The word not understood.
         token: String,
+    },
+    /// The front of meta policies has none at the multiple named.
+    #[error("method {spec}: the front of meta policies has none at {multiple} (it has {have})")]
+    NotOnFront {
+        /// The whole name.
+        spec: String,
+        /// The multiple named.
+        multiple: f64,
+        /// The multiples it has, comma-separated.
+        have: String,
     },
     /// A learned method's weights cannot be loaded.
     #[error("method {spec}")]
@@ -153,8 +165,21 @@ impl Method {
                 Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
             }
             "hrl" => {
-                let multiple = number()?.unwrap_or(1.0);
-                let hierarchy = models::load_hierarchy(sources.meta, multiple).map_err(model)?;
+                let multiple = number()?;
+                let meta = match (sources.meta_front, multiple) {
+                    (Some(front), Some(m)) => Some(front.at(m).ok_or_else(|| {
+                        let have: Vec<String> =
+                            front.multiples().iter().map(f64::to_string).collect();
+                        MethodError::NotOnFront {
+                            spec: spec.to_owned(),
+                            multiple: m,
+                            have: have.join(", "),
+                        }
+                    })?),
+                    _ => sources.meta,
+                };
+                let multiple = multiple.unwrap_or(1.0);
+                let hierarchy = models::load_hierarchy(meta, multiple).map_err(model)?;
                 Ok(Method::new(spec, Solver::Hierarchy(Box::new(hierarchy))))
             }
             other => Err(MethodError::Unknown { name: other.to_owned() }),

@@ -64,6 +64,15 @@ pub enum ModelError {
     /// The two low-level policies do not fit together.
     #[error("the low-level policies")]
     LowLevel(#[source] LowLevelError),
+    /// A Pareto set's directory cannot be listed, holds no meta policy, or holds one that
+    /// is weight-conditioned or shares its multiple with another.
+    #[error("the meta policies of the front in {}: {why}", dir.display())]
+    Front {
+        /// The directory.
+        dir: PathBuf,
+        /// What is wrong.
+        why: String,
+    },
     /// The meta policy does not fit its low level.
     #[error("the meta policy {}", file.display())]
     Hierarchy {
@@ -204,6 +213,82 @@ pub fn load_hierarchy(path: Option<&Path>, multiple: f64) -> Result<Hierarchy, M
     hierarchy(meta, &header, &file, None, None, multiple)
 }
 
+/// A Pareto set: meta policies each trained at one fixed multiple of `w_f`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MetaFront {
+    /// `(multiple, policy file)`, ascending by multiple.
+    pub points: Vec<(f64, PathBuf)>,
+}
+
+impl MetaFront {
+    /// The meta policies in the subdirectories of `dir` (each a weights directory, as
+    /// `phalanx train meta --weight-multiple M --out DIR/M` leaves it, or a `models/`-style
+    /// one); the shipped `models/meta-front` when `None`. Each point is named by the multiple
+    /// its header records, not by its directory's name.
+    ///
+    /// # Errors
+    /// [`ModelError::NoWeights`] without a directory, and [`ModelError::Front`] if one cannot
+    /// be listed, holds no meta policy, or one that is weight-conditioned, or two at one
+    /// multiple.
+    pub fn load(dir: Option<&Path>) -> Result<MetaFront, ModelError> {
+        let dir =
+            match dir {
+                Some(dir) => dir.to_path_buf(),
+                None => default_dirs("meta-front").into_iter().find(|d| d.is_dir()).ok_or_else(
+                    || ModelError::NoWeights {
+                        name: "meta-front".into(),
+                        searched: default_dirs("meta-front")
+                            .iter()
+                            .map(|d| d.display().to_string())
+                            .collect::<Vec<_>>()
+                            .join(", "),
+                    },
+                )?,
+            };
+        let front = |why: String| ModelError::Front { dir: dir.clone(), why };
+        let listing = std::fs::read_dir(&dir).map_err(|err| front(err.to_string()))?;
+        let mut subdirs: Vec<PathBuf> =
+            listing.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_dir()).collect();
+        subdirs.sort();
+        let mut points: Vec<(f64, PathBuf)> = Vec::new();
+        for sub in subdirs {
+            let Ok(file) = weights_file(Some(&sub), "meta") else { continue };
+            let header = crate::policy_file::read_header(&file)
+                .map_err(|source| ModelError::Load { name: "meta".into(), source })?;
+            let info = header.meta.ok_or_else(|| ModelError::NotMeta { file: file.clone() })?;
+            let crate::Multiples::Fixed { multiple } = info.weight.multiples else {
+                return Err(front(format!(
+                    "{} is weight-conditioned; a front holds one policy per multiple",
+                    file.display()
+                )));
+            };
+            if let Some((_, other)) = points.iter().find(|(m, _)| *m == multiple) {
+                return Err(front(format!(
+                    "{} and {} were both trained at the multiple {multiple}",
+                    other.display(),
+                    file.display()
+                )));
+            }
+            points.push((multiple, file));
+        }
+        if points.is_empty() {
+            return Err(front("no subdirectory holds a meta policy".into()));
+        }
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Ok(MetaFront { points })
+    }
+
+    /// The policy file trained at `multiple`, if the front has one.
+    pub fn at(&self, multiple: f64) -> Option<&Path> {
+        self.points.iter().find(|(m, _)| *m == multiple).map(|(_, file)| file.as_path())
+    }
+
+    /// The multiples, ascending.
+    pub fn multiples(&self) -> Vec<f64> {
+        self.points.iter().map(|(m, _)| *m).collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -214,6 +299,35 @@ mod tests {
         let err = weights_file(Some(dir.path()), "pathfinding").unwrap_err().to_string();
         assert!(err.contains("for the pathfinding policy in"), "{err}");
         assert!(err.contains(&dir.path().display().to_string()), "{err}");
+    }
+
+    #[test]
+    fn a_front_names_its_points_by_their_multiples_and_refuses_two_at_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let shipped = weights_file(None, "meta").unwrap();
+        let place = |sub: &str| {
+            std::fs::create_dir_all(dir.path().join(sub)).unwrap();
+            std::fs::copy(&shipped, dir.path().join(sub).join("policy.bin")).unwrap();
+        };
+        let err = MetaFront::load(Some(dir.path())).unwrap_err().to_string();
+        assert!(err.contains("no subdirectory holds a meta policy"), "{err}");
+        place("any-name");
+        std::fs::create_dir_all(dir.path().join("empty")).unwrap();
+        let front = MetaFront::load(Some(dir.path())).unwrap();
+        let multiple = front.multiples()[0];
+        assert_eq!(front.multiples(), [multiple]);
+        assert!(front.at(multiple).unwrap().ends_with("any-name/policy.bin"));
+        assert_eq!(front.at(multiple + 1.0), None);
+        place("other");
+        let err = MetaFront::load(Some(dir.path())).unwrap_err().to_string();
+        assert!(err.contains(&format!("both trained at the multiple {multiple}")), "{err}");
+        // A policy that is not a meta policy is refused by its file.
+        std::fs::remove_dir_all(dir.path().join("other")).unwrap();
+        std::fs::create_dir_all(dir.path().join("pf")).unwrap();
+        let pathfinding = weights_file(None, "pathfinding").unwrap();
+        std::fs::copy(pathfinding, dir.path().join("pf/policy.bin")).unwrap();
+        let err = MetaFront::load(Some(dir.path())).unwrap_err().to_string();
+        assert!(err.contains("pf/policy.bin is not a meta policy"), "{err}");
     }
 
     #[test]
