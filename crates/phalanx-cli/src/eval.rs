@@ -100,6 +100,9 @@ pub(crate) struct EvalCmd {
     /// Probability of a random allowed action per agent and step in the extra rollouts.
     #[arg(long, default_value_t = 0.05, value_parser = util::fraction)]
     random_prob: f64,
+    /// Which rollout counts, a solved one always first.
+    #[arg(long, value_enum, default_value_t = meta::KeepArg::Fastest)]
+    keep: meta::KeepArg,
     /// hrl: the multiple of the base formation weight w_f a weight-conditioned meta policy
     /// runs at.
     #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
@@ -203,7 +206,12 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     );
     let started = Instant::now();
     anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
-    let rollouts = Rollouts { count: cmd.rollouts, epsilon: cmd.random_prob, seed: cmd.map.seed };
+    let rollouts = Rollouts {
+        count: cmd.rollouts,
+        epsilon: cmd.random_prob,
+        seed: cmd.map.seed,
+        keep: cmd.keep.into(),
+    };
     let mut after_first_batch = None;
     let mut progress = |done: usize| {
         after_first_batch.get_or_insert_with(crate::memory::held);

@@ -4,8 +4,8 @@
 
 use anyhow::Context as _;
 use phalanx_rl::{
-    FormationWeight, Learner, LowLevel, MetaInfo, Policy, Rollouts, ScriptedMeta, TrainConfig,
-    estimate_weight,
+    FormationWeight, Keep, Learner, LowLevel, MetaInfo, Policy, Rollouts, ScriptedMeta,
+    TrainConfig, estimate_weight,
 };
 
 use phalanx_rl::models;
@@ -89,11 +89,33 @@ pub(crate) struct RolloutArgs {
     /// rollouts after the first.
     #[arg(long, default_value_t = 0.05, value_parser = crate::util::fraction)]
     random_prob: f64,
+    /// Learned policies: which rollout counts, a solved one always first.
+    #[arg(long, value_enum, default_value_t = KeepArg::Fastest)]
+    keep: KeepArg,
+}
+
+/// `--keep`: which of an instance's rollouts counts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum KeepArg {
+    /// Fewest steps, then the lower formation loss.
+    Fastest,
+    /// The lower Table II formation loss, then fewest steps.
+    Tightest,
+}
+
+impl From<KeepArg> for Keep {
+    fn from(keep: KeepArg) -> Keep {
+        match keep {
+            KeepArg::Fastest => Keep::Fastest,
+            KeepArg::Tightest => Keep::Tightest,
+        }
+    }
 }
 
 impl RolloutArgs {
     /// The rollouts, their random actions drawn from `seed`, at most `max` of them.
     pub(crate) fn rollouts(&self, seed: u64, max: usize) -> Rollouts {
-        Rollouts { count: (self.rollouts as usize).min(max), epsilon: self.random_prob, seed }
+        let count = (self.rollouts as usize).min(max);
+        Rollouts { count, epsilon: self.random_prob, seed, keep: self.keep.into() }
     }
 }

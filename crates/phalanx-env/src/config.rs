@@ -82,8 +82,8 @@ pub struct EnvConfig {
     /// when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub idle_cost: f64,
-    /// What counts as idle for `idle_cost`. Default: the team. Not written when the default.
-    #[serde(skip_serializing_if = "IdleScope::is_team")]
+    /// What counts as idle for `idle_cost`. Default: each agent. Not written when the default.
+    #[serde(skip_serializing_if = "IdleScope::is_agent")]
     pub idle_scope: IdleScope,
 }
 
@@ -91,17 +91,18 @@ pub struct EnvConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum IdleScope {
+    /// Each agent off its goal that did not get closer pays, whatever the others did (the
+    /// default: the shipped meta policy's).
+    #[default]
+    Agent,
     /// A step in which no agent of the team got closer to its goal: every agent off its goal
     /// pays (a team that stands, in formation or not).
-    #[default]
     Team,
-    /// Each agent off its goal that did not get closer pays, whatever the others did.
-    Agent,
 }
 
 impl IdleScope {
-    fn is_team(&self) -> bool {
-        *self == IdleScope::Team
+    fn is_agent(&self) -> bool {
+        *self == IdleScope::Agent
     }
 }
 
@@ -117,7 +118,7 @@ impl Default for EnvConfig {
             formation_weight: 1.0,
             step_limit: None,
             idle_cost: 0.0,
-            idle_scope: IdleScope::Team,
+            idle_scope: IdleScope::Agent,
         }
     }
 }

@@ -159,7 +159,7 @@ pub(crate) fn solve(
     method.fits(&instance.instance).map_err(|why| bad(format!("{planner}: {why}")))?;
     let settings = Settings {
         time_limit_s: time_limit,
-        rollouts: Rollouts { count: rollouts, epsilon: 0.05, seed },
+        rollouts: Rollouts { count: rollouts, epsilon: 0.05, seed, ..Rollouts::default() },
     };
     let solved =
         py.detach(|| method.run(&instance.instance, &settings)).map_err(|err| error(&err))?;

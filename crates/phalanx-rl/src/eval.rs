@@ -18,7 +18,7 @@ use phalanx_core::{Instance, Plan, PlanMetrics, ViolationKind, validate};
 use phalanx_env::{Choice, Env, EnvConfig, EnvError, HierEnv, ObsBuffers, StepOut, Task, TaskEnv};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::hierarchy::Hierarchy;
 use crate::policy::{Policy, row_offsets};
@@ -64,7 +64,7 @@ pub struct EvalEpisode {
 /// instance is played `count` times, the first greedily, the others with a random allowed
 /// action taken with probability `epsilon` per agent and step (in the hierarchy: an action
 /// allowed by the agent's chosen low-level policy, the meta choice staying greedy); the best
-/// rollout counts (solved before unsolved, then fewer steps, then lower formation loss).
+/// rollout by `keep` counts.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Rollouts {
     /// Rollouts per instance (at least 1).
@@ -73,12 +73,33 @@ pub struct Rollouts {
     pub epsilon: f64,
     /// Seed of the random actions.
     pub seed: u64,
+    /// Which rollout counts. Not written when the default.
+    #[serde(skip_serializing_if = "Keep::is_fastest")]
+    pub keep: Keep,
 }
 
 impl Default for Rollouts {
     /// One greedy rollout.
     fn default() -> Self {
-        Rollouts { count: 1, epsilon: 0.0, seed: 0 }
+        Rollouts { count: 1, epsilon: 0.0, seed: 0, keep: Keep::Fastest }
+    }
+}
+
+/// Which of an instance's rollouts counts; a solved one always before an unsolved one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Keep {
+    /// Fewest steps, then the lower Table II formation loss (the default).
+    #[default]
+    Fastest,
+    /// The lower Table II formation loss, then fewest steps: for a method whose objective
+    /// is the formation.
+    Tightest,
+}
+
+impl Keep {
+    fn is_fastest(&self) -> bool {
+        *self == Keep::Fastest
     }
 }
 
@@ -168,7 +189,7 @@ fn evaluate_with(
             let again = play(chunk, rollouts.epsilon, &mut rng)?;
             for (kept, new) in best.iter_mut().zip(again) {
                 let decisions = kept.decisions + new.decisions;
-                if better(&new, kept) {
+                if better(&new, kept, rollouts.keep) {
                     *kept = new;
                 }
                 kept.decisions = decisions;
@@ -180,9 +201,16 @@ fn evaluate_with(
     Ok(res)
 }
 
-/// Solved before unsolved, then fewer steps, then lower formation loss.
-fn better(a: &EvalEpisode, b: &EvalEpisode) -> bool {
-    (!a.success, a.steps, a.formation_loss) < (!b.success, b.steps, b.formation_loss)
+/// Whether rollout `a` is better than `b` by `keep` (solved before unsolved always).
+fn better(a: &EvalEpisode, b: &EvalEpisode, keep: Keep) -> bool {
+    let solved = (!a.success).cmp(&!b.success);
+    let steps = a.steps.cmp(&b.steps);
+    let loss = a.formation_loss.total_cmp(&b.formation_loss);
+    let order = match keep {
+        Keep::Fastest => solved.then(steps).then(loss),
+        Keep::Tightest => solved.then(loss).then(steps),
+    };
+    order.is_lt()
 }
 
 /// The trajectories of a chunk's episodes while they run.

@@ -55,7 +55,7 @@ pub mod weight;
 
 pub use agent::{AgentError, AgentHierarchy, AgentPolicy, Features};
 pub use eval::evaluate_hierarchy;
-pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
+pub use eval::{EvalEpisode, EvalSummary, Keep, Rollouts, evaluate};
 pub use hierarchy::{
     FormationWeight, Hierarchy, LowLevel, MetaEnv, MetaInfo, MetaPolicy, Multiples, PolicyRef,
     ScriptedMeta,

@@ -116,7 +116,8 @@ pub fn estimate_weight(
             evaluate(formation, Task::Formation, &env, &starts, 50, greedy, &mut step_progress)?;
         done += starts.len();
         // ε = 1: every action uniformly among the allowed ones.
-        let random_rollouts = Rollouts { count: 1, epsilon: 1.0, seed: config.seed };
+        let random_rollouts =
+            Rollouts { count: 1, epsilon: 1.0, seed: config.seed, ..Rollouts::default() };
         let random = evaluate_at(formation, Task::Formation, &env, &starts, 50, random_rollouts)?;
         let change = |it: &EvalEpisode| it.final_formation_loss - it.start_formation_loss;
         let a: Vec<f64> = policy.iter().map(change).collect();

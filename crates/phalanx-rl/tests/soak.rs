@@ -54,7 +54,7 @@ fn main() {
         phalanx_rl::models::load(None, "pathfinding").expect("the shipped policy");
     let env = EnvConfig { step_limit: Some(48), ..EnvConfig::default() };
     let maps = EvalMaps::new(GenConfig { size: 16, density: 0.15, n_agents: 3, seed: 9, fov: 9 });
-    let rollouts = Rollouts { count: 1, epsilon: 0.0, seed: 0 };
+    let rollouts = Rollouts { count: 1, epsilon: 0.0, seed: 0, ..Rollouts::default() };
     let (mut after_first, mut solved, mut done) = (None, 0, 0);
     while done < episodes {
         let n = BATCH.min(episodes - done);

@@ -144,7 +144,7 @@ fn the_decentralised_run_is_the_batched_policy_s_trajectory() {
     for (size, n_agents, seed) in [(20, 3, 3), (32, 5, 8)] {
         let instance =
             generate(&GenConfig { size, density: 0.15, n_agents, seed, fov: 9 }).unwrap();
-        let rollouts = Rollouts { count: 1, epsilon: 0.0, seed: 0 };
+        let rollouts = Rollouts { count: 1, epsilon: 0.0, seed: 0, ..Rollouts::default() };
         let mut batched = policy();
         let episode = phalanx_rl::evaluate(
             &mut batched,
@@ -170,7 +170,7 @@ fn the_decentralised_hierarchy_is_the_batched_hierarchy_s_trajectory() {
         let instance =
             generate(&GenConfig { size, density: 0.15, n_agents, seed, fov: 9 }).unwrap();
         // What `phalanx solve --planner hrl --rollouts 1` plans.
-        let rollouts = Rollouts { count: 1, epsilon: 0.0, seed: 0 };
+        let rollouts = Rollouts { count: 1, epsilon: 0.0, seed: 0, ..Rollouts::default() };
         let env = EnvConfig { task: Task::Meta, ..config(&instance) };
         let episode = phalanx_rl::evaluate_hierarchy(
             &mut hierarchy(),
