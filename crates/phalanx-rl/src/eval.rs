@@ -119,8 +119,8 @@ pub fn evaluate(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut envs = Vec::new();
-    let mut play = |chunk: &[Instance], epsilon, rng: &mut ChaCha8Rng| {
-        play_low_level(policy, task, env, chunk, epsilon, rng, &mut envs)
+    let mut play = |chunk: &[Instance], caps: &[usize], epsilon, rng: &mut ChaCha8Rng| {
+        play_low_level(policy, task, env, chunk, caps, epsilon, rng, &mut envs)
     };
     evaluate_with(&mut play, instances, batch, rollouts, progress)
 }
@@ -143,8 +143,8 @@ pub fn evaluate_at(
     let mut res = Vec::with_capacity(instances.len());
     let mut envs = Vec::new();
     for chunk in instances.chunks(batch.max(1)) {
-        let epsilon = rollouts.epsilon;
-        res.extend(play_low_level(policy, task, env, chunk, epsilon, &mut rng, &mut envs)?);
+        let (caps, epsilon) = (vec![usize::MAX; chunk.len()], rollouts.epsilon);
+        res.extend(play_low_level(policy, task, env, chunk, &caps, epsilon, &mut rng, &mut envs)?);
     }
     Ok(res)
 }
@@ -162,15 +162,16 @@ pub fn evaluate_hierarchy(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut envs = Vec::new();
-    let mut play = |chunk: &[Instance], epsilon, rng: &mut ChaCha8Rng| {
-        play_hierarchy(hierarchy, env, chunk, epsilon, rng, &mut envs)
+    let mut play = |chunk: &[Instance], caps: &[usize], epsilon, rng: &mut ChaCha8Rng| {
+        play_hierarchy(hierarchy, env, chunk, caps, epsilon, rng, &mut envs)
     };
     evaluate_with(&mut play, instances, batch, rollouts, progress)
 }
 
-/// One rollout of a chunk of instances in lockstep: `(chunk, epsilon, rng)`.
-type Play<'a> =
-    dyn FnMut(&[Instance], f64, &mut ChaCha8Rng) -> Result<Vec<EvalEpisode>, EnvError> + 'a;
+/// One rollout of a chunk of instances in lockstep: `(chunk, caps, epsilon, rng)`; episode
+/// `e` stops unsolved after `caps[e]` steps (see [`Tracks::new`]).
+type Play<'a> = dyn FnMut(&[Instance], &[usize], f64, &mut ChaCha8Rng) -> Result<Vec<EvalEpisode>, EnvError>
+    + 'a;
 
 /// The rollouts of every chunk, keeping each instance's best.
 fn evaluate_with(
@@ -182,11 +183,21 @@ fn evaluate_with(
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut res: Vec<EvalEpisode> = Vec::with_capacity(instances.len());
     for (c, chunk) in instances.chunks(batch.max(1)).enumerate() {
-        let mut best = play(chunk, 0.0, &mut ChaCha8Rng::seed_from_u64(0))?;
+        let uncapped = vec![usize::MAX; chunk.len()];
+        let mut best = play(chunk, &uncapped, 0.0, &mut ChaCha8Rng::seed_from_u64(0))?;
         for r in 1..rollouts.count {
             let mut rng = ChaCha8Rng::seed_from_u64(rollouts.seed);
             rng.set_stream(((c as u64) << 20) | r as u64);
-            let again = play(chunk, rollouts.epsilon, &mut rng)?;
+            // Keeping the fastest, a rollout still running after the steps of a solved one
+            // cannot be kept: it stops there (the random draws of the others do not change).
+            let caps: Vec<usize> = best
+                .iter()
+                .map(|kept| match rollouts.keep {
+                    Keep::Fastest if kept.success => kept.steps,
+                    _ => usize::MAX,
+                })
+                .collect();
+            let again = play(chunk, &caps, rollouts.epsilon, &mut rng)?;
             for (kept, new) in best.iter_mut().zip(again) {
                 let decisions = kept.decisions + new.decisions;
                 if better(&new, kept, rollouts.keep) {
@@ -220,6 +231,7 @@ struct Tracks<'a> {
     collisions: Vec<u64>,
     terminated: Vec<bool>,
     running: Vec<bool>,
+    caps: &'a [usize],
     lower_bounds: Vec<u32>,
     choices: Option<Vec<Vec<u8>>>,
 }
@@ -227,8 +239,9 @@ struct Tracks<'a> {
 impl<'a> Tracks<'a> {
     /// Episodes at their starts: `sims[e]` runs episode `e` (reset to its instance), whose
     /// lower bound and whether it starts solved are read from it; with `hier`, choices are
-    /// recorded too.
-    fn new(chunk: &'a [Instance], sims: &[&Env], hier: bool) -> Self {
+    /// recorded too. Episode `e` stops after `caps[e]` steps unless it terminated by then
+    /// (unsolved, as when truncated).
+    fn new(chunk: &'a [Instance], caps: &'a [usize], sims: &[&Env], hier: bool) -> Self {
         let lower_bounds = sims.iter().map(|sim| lower_bound(sim)).collect();
         let solved: Vec<bool> = sims.iter().map(|sim| sim.is_done()).collect();
         let plans = chunk
@@ -245,6 +258,7 @@ impl<'a> Tracks<'a> {
             collisions: vec![0; chunk.len()],
             terminated: solved.clone(),
             running: solved.iter().map(|&done| !done).collect(),
+            caps,
             lower_bounds,
             choices: hier.then(|| vec![Vec::new(); chunk.len()]),
         }
@@ -255,7 +269,8 @@ impl<'a> Tracks<'a> {
         self.plans[e].push(positions);
         self.collisions[e] += u64::from(out.collisions);
         self.terminated[e] = out.terminated;
-        self.running[e] = !(out.terminated || out.truncated);
+        let capped = self.plans[e].horizon() >= self.caps[e];
+        self.running[e] = !(out.terminated || out.truncated || capped);
     }
 
     /// Scores every plan with the validator and the plan metrics. A rollout that stops short
@@ -312,11 +327,13 @@ fn lower_bound(env: &Env) -> u32 {
 /// One rollout of a low-level policy on every instance of `chunk` in lockstep. `envs` are
 /// the environments of the last call, reused where the agent count allows: the rollouts of
 /// an instance then search its distance maps once (`Env::reset` keeps them).
+#[allow(clippy::too_many_arguments, reason = "one rollout's inputs, as play_hierarchy's")]
 fn play_low_level(
     policy: &mut Policy,
     task: Task,
     env: &EnvConfig,
     chunk: &[Instance],
+    caps: &[usize],
     epsilon: f64,
     rng: &mut ChaCha8Rng,
     envs: &mut Vec<TaskEnv>,
@@ -332,7 +349,7 @@ fn play_low_level(
         obs.push(buffers);
     }
     let sims: Vec<&Env> = envs.iter().map(|it| it.env()).collect();
-    let mut tracks = Tracks::new(chunk, &sims, false);
+    let mut tracks = Tracks::new(chunk, caps, &sims, false);
     let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
     let mut actions = vec![0_u8; chunk.iter().map(Instance::n_agents).sum()];
     policy.reset();
@@ -375,6 +392,7 @@ fn play_hierarchy(
     hierarchy: &mut Hierarchy,
     env: &EnvConfig,
     chunk: &[Instance],
+    caps: &[usize],
     epsilon: f64,
     rng: &mut ChaCha8Rng,
     envs: &mut Vec<HierEnv>,
@@ -393,7 +411,7 @@ fn play_hierarchy(
         obs.push(buffers);
     }
     let sims: Vec<&Env> = envs.iter().map(|it| it.env()).collect();
-    let mut tracks = Tracks::new(chunk, &sims, true);
+    let mut tracks = Tracks::new(chunk, caps, &sims, true);
     let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
     let rows = chunk.iter().map(Instance::n_agents).sum();
     let (mut choices, mut actions) = (vec![0_u8; rows], vec![0_u8; rows]);

@@ -49,8 +49,12 @@ pub(super) struct Frame {
     queue: Vec<u32>,
     /// Which cells of the window being searched are free (the border is not).
     free: Vec<bool>,
-    /// The frame goal each agent's window was last searched from.
-    searched: Vec<Option<Cell>>,
+    /// Cells of the window being searched that the agent's view still needs.
+    wanted: Vec<bool>,
+    /// What each agent's window holds: the frame goal it was searched from, and the agent's
+    /// cell when the search stopped once the cells of that agent's view were settled (`None`:
+    /// the whole window).
+    searched: Vec<Option<(Cell, Option<Cell>)>>,
     /// Whether each agent stands on its frame goal.
     on_goal: Vec<bool>,
 }
@@ -78,14 +82,21 @@ impl Env {
         frame.dist.resize(n * CELLS, UNREACHABLE);
         frame.queue.resize(CELLS, 0);
         frame.free.resize(CELLS, false);
+        frame.wanted.resize(CELLS, false);
         frame.searched.resize(n, None);
         for (agent, window) in frame.dist.chunks_exact_mut(CELLS).enumerate() {
             // The map does not change within an episode (resets clear `searched`), so a
-            // window searched from the same goal is still right.
-            let goal = frame.goals[agent];
-            if frame.searched[agent] != Some(goal) {
-                self.window_bfs(goal, window, &mut frame.queue, &mut frame.free);
-                frame.searched[agent] = Some(goal);
+            // window searched from the same goal is still right: the whole window, or the
+            // part the agent's view reads from where it stands.
+            let (goal, here) = (frame.goals[agent], self.pos[agent]);
+            let fresh = match frame.searched[agent] {
+                Some((searched, part)) => searched != goal || part.is_some_and(|at| at != here),
+                None => true,
+            };
+            if fresh {
+                let (queue, free, wanted) = (&mut frame.queue, &mut frame.free, &mut frame.wanted);
+                let whole = self.window_bfs(goal, here, window, queue, free, wanted);
+                frame.searched[agent] = Some((goal, (!whole).then_some(here)));
             }
         }
         frame.on_goal.clear();
@@ -115,6 +126,10 @@ impl Env {
         let here = self.pos[agent];
         let goal = self.frame.goals[agent];
         let window = &self.frame.dist[agent * CELLS..(agent + 1) * CELLS];
+        debug_assert!(
+            matches!(self.frame.searched[agent], Some((g, part)) if g == goal && part.is_none_or(|at| at == here)),
+            "the window was searched for this goal and cell"
+        );
         let manhattan = |c: Cell| (c.x - goal.x).unsigned_abs() + (c.y - goal.y).unsigned_abs();
         let own = window_at(window, goal, here);
         let k = (f - 1) as f32;
@@ -169,8 +184,19 @@ impl Env {
     }
 
     /// BFS from `source` over the free cells of its window (the source itself counts as
-    /// free); `window` is overwritten (`PADDED × PADDED`).
-    fn window_bfs(&self, source: Cell, window: &mut [u32], queue: &mut [u32], free: &mut [bool]) {
+    /// free); `window` is overwritten (`PADDED × PADDED`). It stops once every free cell of
+    /// the window within the field of view around `view` is settled (the cells farther away
+    /// keep `UNREACHABLE`) and returns whether it searched the whole window. `wanted` is all
+    /// `false` before and after.
+    fn window_bfs(
+        &self,
+        source: Cell,
+        view: Cell,
+        window: &mut [u32],
+        queue: &mut [u32],
+        free: &mut [bool],
+        wanted: &mut [bool],
+    ) -> bool {
         free.fill(false);
         let origin = source.offset(-RADIUS, -RADIUS);
         let (width, height) = (self.width as i32, self.height as i32);
@@ -191,9 +217,29 @@ impl Env {
         free[start] = true;
         window.fill(UNREACHABLE);
         window[start] = 0;
+        // The free cells of the window within the view of `view`: once each is settled, the
+        // rest of the window is never read from there.
+        let r = self.pad as i32;
+        let index = |cell: Cell| {
+            let (x, y) = (cell.x - origin.x, cell.y - origin.y);
+            ((0..SIDE as i32).contains(&x) && (0..SIDE as i32).contains(&y))
+                .then(|| (y as usize + 1) * PADDED + x as usize + 1)
+        };
+        let mut pending = 0_usize;
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if let Some(id) = index(view.offset(dx, dy))
+                    && free[id]
+                    && id != start
+                {
+                    wanted[id] = true;
+                    pending += 1;
+                }
+            }
+        }
         queue[0] = start as u32;
         let (mut head, mut tail) = (0, 1);
-        while head < tail {
+        while head < tail && pending > 0 {
             let id = queue[head] as usize;
             head += 1;
             let next = window[id] + 1;
@@ -202,9 +248,18 @@ impl Env {
                     window[n] = next;
                     queue[tail] = n as u32;
                     tail += 1;
+                    if wanted[n] {
+                        wanted[n] = false;
+                        pending -= 1;
+                    }
                 }
             }
         }
+        let whole = head == tail;
+        if pending > 0 {
+            wanted.fill(false);
+        }
+        whole
     }
 }
 

@@ -130,3 +130,43 @@ fn a_reset_keeps_the_distance_maps_of_the_same_map_only() {
     }
     assert!(fresh(&a) != fresh(&b), "the wall changes what the agents see");
 }
+
+/// Frame windows are kept from step to step (and searched only as far as an agent's view):
+/// after every step the frame views equal those of a fresh environment placed in the same
+/// state, whether the frame goals moved, or stayed while the agents moved.
+#[test]
+fn frame_views_after_steps_equal_a_fresh_search() {
+    let config = GenConfig { size: 32, density: 0.15, n_agents: 3, seed: 9, fov: 9 };
+    let inst = phalanx_gen::generate(&config).unwrap();
+    let frames = |env: &mut Env, anchor_cell| {
+        env.update_frame(0, anchor_cell);
+        let len = env.obs_shape().grid_len();
+        let mut out = vec![0.0; env.n_agents() * len];
+        for (agent, grid) in out.chunks_exact_mut(len).enumerate() {
+            env.write_frame_grid(agent, grid);
+        }
+        out
+    };
+    let mut env = Env::new(EnvConfig::default()).unwrap();
+    env.reset(&inst).unwrap();
+    let fixed = inst.starts()[0];
+    for t in 0..40 {
+        // The frame anchored at a fixed cell for a few steps (the goals stay, the agents
+        // move), then at the first agent (the goals move with it).
+        let anchor = if t % 10 < 5 { fixed } else { env.positions()[0] };
+        let kept = frames(&mut env, anchor);
+        let placed = phalanx_core::Instance::new(
+            inst.grid().clone(),
+            env.positions().to_vec(),
+            inst.goals().to_vec(),
+        )
+        .unwrap();
+        let mut fresh = Env::new(EnvConfig::default()).unwrap();
+        fresh.reset(&placed).unwrap();
+        assert!(kept == frames(&mut fresh, anchor), "step {t}: a kept window differs");
+        if env.is_done() {
+            break;
+        }
+        env.step(&[Action::ALL[t % 4], Action::ALL[(t / 3) % 4], Action::ALL[(t / 7) % 4]]);
+    }
+}
