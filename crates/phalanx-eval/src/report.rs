@@ -207,8 +207,8 @@ pub fn plot_table2(
 
 /// `pareto.svg`: per case (one panel each), every method's point (mean makespan, mean Table
 /// II formation loss over its solved runs); the points of one family (the name before `:`,
-/// e.g. `jsa` for `jsa:0.1`, `jsa:1`) are joined in order of makespan; on Table II's rows a
-/// cross marks the paper's method.
+/// e.g. `jsa` for `jsa:0.1`, `jsa:1`) are joined in order of makespan, a ring for a method
+/// that did not solve every instance; on Table II's rows a cross marks the paper's method.
 ///
 /// # Errors
 /// If the file cannot be written.
@@ -229,18 +229,24 @@ pub fn plot_pareto(
         .iter()
         .map(|case| {
             let here: Vec<&Cell> = cells.iter().filter(|c| c.case == case.label).collect();
-            let points = |family: &str| -> Vec<(f64, f64)> {
-                let mut p: Vec<(f64, f64)> = here
+            // A method that solved only some instances is drawn as a ring: its means are over
+            // the solved ones, the easier instances.
+            let points = |family: &str| -> Vec<Point> {
+                let mut p: Vec<Point> = here
                     .iter()
                     .filter(|c| c.method.split(':').next() == Some(family))
-                    .filter_map(|c| Some((c.makespan?, c.formation_loss?)))
+                    .filter_map(|c| {
+                        let marker =
+                            if c.success_rate < 1.0 { Marker::Ring } else { Marker::Circle };
+                        Some(Point { x: c.makespan?, y: c.formation_loss?, marker })
+                    })
                     .collect();
-                p.sort_by(|a, b| a.0.total_cmp(&b.0));
+                p.sort_by(|a, b| a.x.total_cmp(&b.x));
                 p
             };
             let paper = case.paper.map(|p| (p.makespan, p.formation_loss));
             let all: Vec<(f64, f64)> =
-                families.iter().flat_map(|f| points(f)).chain(paper).collect();
+                families.iter().flat_map(|f| points(f)).map(|p| (p.x, p.y)).chain(paper).collect();
             let x_lo = all.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
             let x_hi = all.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
             let y_hi = all.iter().map(|p| p.1).fold(0.0_f64, f64::max);
@@ -250,8 +256,11 @@ pub fn plot_pareto(
                 .iter()
                 .enumerate()
                 .map(|(k, family)| Series {
+                    name: Some((*family).to_owned()),
+                    colour: k,
+                    width: 1,
                     line: true,
-                    ..dots(Some(family), k, &points(family), Marker::Circle)
+                    points: points(family),
                 })
                 .collect();
             if let Some(point) = paper {

@@ -104,6 +104,8 @@ pub enum Marker {
     None,
     /// A filled circle.
     Circle,
+    /// A hollow circle.
+    Ring,
     /// A filled triangle.
     Triangle,
     /// A black cross.
@@ -211,7 +213,7 @@ where
             }
         }
         let mut first = true;
-        for marker in [Marker::Circle, Marker::Triangle, Marker::Cross] {
+        for marker in [Marker::Circle, Marker::Ring, Marker::Triangle, Marker::Cross] {
             let at: Vec<(f64, f64)> =
                 series.points.iter().filter(|p| p.marker == marker).map(|p| (p.x, p.y)).collect();
             if at.is_empty() {
@@ -221,6 +223,8 @@ where
                 Marker::Circle => {
                     chart.draw_series(at.iter().map(|&p| Circle::new(p, 5, colour.filled())))?
                 }
+                Marker::Ring => chart
+                    .draw_series(at.iter().map(|&p| Circle::new(p, 5, colour.stroke_width(2))))?,
                 Marker::Triangle => chart
                     .draw_series(at.iter().map(|&p| TriangleMarker::new(p, 7, colour.filled())))?,
                 Marker::Cross => chart
