@@ -462,6 +462,29 @@ fn meta_training_weight_and_hierarchy_run_end_to_end() {
 }
 
 #[test]
+fn bench_pareto_runs_the_shipped_front_and_refuses_points_it_lacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // models/meta-front: one meta policy per multiple, each named by the multiple it records.
+    let args = ["bench", "pareto", "--quick", "--methods", "hrl:0.3,hrl:3", "--out", "p"];
+    check(&phalanx(d, &args), 0);
+    let text = std::fs::read_to_string(d.join("p/runs.jsonl")).unwrap();
+    for method in ["hrl:0.3", "hrl:3"] {
+        assert_eq!(text.matches(&format!("\"method\":\"{method}\"")).count(), 3 * 2, "{text}");
+    }
+    let settings = std::fs::read_to_string(d.join("p/bench.json")).unwrap();
+    assert!(settings.contains("\"meta_front\""), "{settings}");
+    assert!(d.join("p/pareto.svg").is_file());
+    let args = ["bench", "pareto", "--quick", "--methods", "hrl:0.5", "--out", "q"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("none at 0.5 (it has 0, 0.1, 0.3, 1, 2, 3)"), "{stderr}");
+    let args = ["bench", "pareto", "--quick", "--meta-front", "nowhere", "--out", "r"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("nowhere"), "{stderr}");
+    assert!(!d.join("r").exists());
+}
+
+#[test]
 fn bench_quick_runs_every_row_and_method_and_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
