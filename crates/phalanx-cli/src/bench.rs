@@ -20,7 +20,7 @@
 //! up to `--jsa-max-side` only.
 //!
 //! Output in `--out`: `runs.jsonl` (one record per run, appended as it finishes; `--resume`
-//! continues from it), `runs.csv`, `cells.json` (per case and method), `<name>.md` (the table,
+//! continues from it), `runs.csv`, `cells.json` and `cells.csv` (per case and method), `<name>.md` (the table,
 //! with the paper's figures beside the hierarchy's and CBS's) and `<name>.svg`.
 //! Each run is timed alone on one thread: the runs go one after another, and the tensor
 //! library and the environment run on one thread.
@@ -442,7 +442,7 @@ fn default_methods(benchmark: &str, hierarchy: &Hierarchies) -> Vec<String> {
     names
 }
 
-/// `runs.csv`, `cells.json`, `<name>.md` and `<name>.svg` of the records.
+/// `runs.csv`, `cells.json`, `cells.csv`, `<name>.md` and `<name>.svg` of the records.
 fn write_outputs(
     name: &str,
     out: &Path,
@@ -454,6 +454,7 @@ fn write_outputs(
     phalanx_io::write_text(&out.join("runs.csv"), &runs::csv(records))?;
     let json = serde_json::to_string_pretty(cells)?;
     phalanx_io::write_text(&out.join("cells.json"), &format!("{json}\n"))?;
+    phalanx_io::write_text(&out.join("cells.csv"), &report::cells_csv(cells))?;
     phalanx_io::write_text(&out.join(format!("{name}.md")), &report::markdown(cases, cells))?;
     let svg = out.join(format!("{name}.svg"));
     match name {

@@ -77,6 +77,34 @@ pub fn cells(records: &[RunRecord], cases: &[Case], methods: &[String]) -> Vec<C
     res
 }
 
+/// `cells.csv`: one line per cell, the fields of [`Cell`] (an empty field where a mean has no
+/// solved run).
+pub fn cells_csv(cells: &[Cell]) -> String {
+    let mut out = String::from(
+        "case,method,runs,solved,success_rate,makespan,formation_loss,formation_loss_mean,\
+         sum_of_costs,runtime_s,timeouts\n",
+    );
+    let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
+    for c in cells {
+        let fields = [
+            crate::runs::quote(&c.case),
+            crate::runs::quote(&c.method),
+            c.runs.to_string(),
+            c.solved.to_string(),
+            c.success_rate.to_string(),
+            opt(c.makespan),
+            opt(c.formation_loss),
+            opt(c.formation_loss_mean),
+            opt(c.sum_of_costs),
+            c.runtime_s.to_string(),
+            c.timeouts.to_string(),
+        ];
+        out.push_str(&fields.join(","));
+        out.push('\n');
+    }
+    out
+}
+
 /// Whether `method` is the paper's method (the hierarchy), whose row figures stand beside it.
 fn is_hierarchy(method: &str) -> bool {
     method == "hrl" || method.starts_with("hrl:")

@@ -170,7 +170,7 @@ pub fn csv(records: &[RunRecord]) -> String {
 }
 
 /// A CSV field, quoted when it holds a comma, a quote or a space.
-fn quote(text: &str) -> String {
+pub(crate) fn quote(text: &str) -> String {
     if text.contains([',', '"', ' ']) {
         format!("\"{}\"", text.replace('"', "\"\""))
     } else {

@@ -475,6 +475,11 @@ fn bench_pareto_runs_the_shipped_front_and_refuses_points_it_lacks() {
     let settings = std::fs::read_to_string(d.join("p/bench.json")).unwrap();
     assert!(settings.contains("\"meta_front\""), "{settings}");
     assert!(d.join("p/pareto.svg").is_file());
+    // The front as a table: one line per (row, point), the success rate and the means.
+    let cells = std::fs::read_to_string(d.join("p/cells.csv")).unwrap();
+    assert!(cells.starts_with("case,method,runs,solved,success_rate,makespan,formation_loss,"));
+    assert_eq!(cells.lines().count(), 1 + 3 * 2, "{cells}");
+    assert!(cells.lines().any(|l| l.starts_with("20x3@0.15,hrl:0.3,2,")), "{cells}");
     let args = ["bench", "pareto", "--quick", "--methods", "hrl:0.5", "--out", "q"];
     let (_, stderr) = check(&phalanx(d, &args), 2);
     assert!(stderr.contains("none at 0.5 (it has 0, 0.1, 0.3, 1, 2, 3)"), "{stderr}");
@@ -507,7 +512,7 @@ fn bench_quick_runs_every_row_and_method_and_resumes() {
             assert!(records.iter().any(|r| r["case"] == row && r["method"] == m), "{row} {m}");
         }
     }
-    for file in ["runs.csv", "cells.json", "table2.md", "table2.svg", "bench.json"] {
+    for file in ["runs.csv", "cells.json", "cells.csv", "table2.md", "table2.svg", "bench.json"] {
         assert!(d.join("b").join(file).is_file(), "{file}");
     }
     assert!(stdout.contains("| 20² | 3 | 0.15 | cbs |"), "{stdout}");
