@@ -10,7 +10,7 @@ use numpy::{PyArray2, PyArrayMethods};
 use phalanx_core::{Cell, Instance, Plan, PlanMetrics, validate as validate_plan};
 use phalanx_eval::{Method, Settings, Sources};
 use phalanx_gen::GenConfig;
-use phalanx_rl::Rollouts;
+use phalanx_rl::{Keep, Rollouts};
 use pyo3::prelude::*;
 
 use crate::{bad, error};
@@ -138,9 +138,10 @@ pub(crate) fn read_instance(path: PathBuf, agents: Option<usize>) -> PyResult<Py
 
 /// Solves `instance` with the method `planner` (`cbs`, `ecbs:1.5`, `swarm`, `astar`, `jsa`,
 /// `pathfinding`, `leader`, `hrl`, `e2e`, …, as `phalanx bench` names them): the summary as
-/// JSON and the plan, if one came back.
+/// JSON and the plan, if one came back. `keep` (`fastest` or `tightest`) says which of a
+/// learned method's rollouts counts.
 #[pyfunction]
-#[pyo3(signature = (instance, planner = "cbs", time_limit = 60.0, rollouts = 8, seed = 0))]
+#[pyo3(signature = (instance, planner = "cbs", time_limit = 60.0, rollouts = 8, seed = 0, keep = "fastest"))]
 pub(crate) fn solve(
     py: Python<'_>,
     instance: &PyInstance,
@@ -148,6 +149,7 @@ pub(crate) fn solve(
     time_limit: f64,
     rollouts: usize,
     seed: u64,
+    keep: &str,
 ) -> PyResult<(String, Option<Paths>)> {
     if !(time_limit.is_finite() && time_limit > 0.0) {
         return Err(bad(format!("time_limit {time_limit} is not a positive number of seconds")));
@@ -155,11 +157,16 @@ pub(crate) fn solve(
     if rollouts == 0 {
         return Err(bad("rollouts 0: at least one rollout"));
     }
+    let keep = match keep {
+        "fastest" => Keep::Fastest,
+        "tightest" => Keep::Tightest,
+        other => return Err(bad(format!("keep {other:?}: fastest or tightest"))),
+    };
     let mut method = Method::named(planner, &Sources::default()).map_err(|err| error(&err))?;
     method.fits(&instance.instance).map_err(|why| bad(format!("{planner}: {why}")))?;
     let settings = Settings {
         time_limit_s: time_limit,
-        rollouts: Rollouts { count: rollouts, epsilon: 0.05, seed, ..Rollouts::default() },
+        rollouts: Rollouts { count: rollouts, epsilon: 0.05, seed, keep },
     };
     let solved =
         py.detach(|| method.run(&instance.instance, &settings)).map_err(|err| error(&err))?;

@@ -268,3 +268,14 @@ def test_copies_of_observations_are_plain_arrays_that_stay():
     np.testing.assert_array_equal(kept["agents"], before)
     np.testing.assert_array_equal(pickled["agents"], before)
     assert kept["agents"] is not obs["agent_0"]["agents"]
+
+
+def test_the_learned_solver_keeps_the_rollout_asked_for(instance_file):
+    instance = phalanx.read_instance(instance_file)
+    fastest = phalanx.solve(instance, "hrl", rollouts=4)
+    tightest = phalanx.solve(instance, "hrl", rollouts=4, keep="tightest")
+    assert fastest.solved and tightest.solved
+    assert tightest.metrics["formation_loss"] <= fastest.metrics["formation_loss"]
+    assert tightest.metrics["makespan"] >= fastest.metrics["makespan"]
+    with pytest.raises(ValueError, match="keep \"best\": fastest or tightest"):
+        phalanx.solve(instance, "hrl", keep="best")

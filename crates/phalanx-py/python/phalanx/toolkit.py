@@ -53,13 +53,18 @@ def solve(
     time_limit: float = 60.0,
     rollouts: int = 8,
     seed: int = 0,
+    keep: str = "fastest",
 ) -> Solution:
     """Solves ``instance`` (or the instance file at that path) with ``planner``: ``cbs``,
     ``ecbs[:W]``, ``astar``, ``swarm``, ``jsa[:W]``, or the learned ``pathfinding``,
-    ``leader[:L]``, ``hrl[:M]``, ``e2e`` (shipped models; ``rollouts`` test-time rollouts)."""
+    ``leader[:L]``, ``hrl[:M]``, ``e2e`` (shipped models; ``rollouts`` test-time rollouts,
+    of which the one with the fewest steps counts, or with ``keep="tightest"`` the one with
+    the lowest formation loss)."""
     if not isinstance(instance, Instance):
         instance = read_instance(instance)
-    summary_json, plan = _phalanx.solve(instance, planner, float(time_limit), rollouts, seed)
+    summary_json, plan = _phalanx.solve(
+        instance, planner, float(time_limit), rollouts, seed, keep
+    )
     summary = json.loads(summary_json)
     return Solution(summary["outcome"], plan, summary.get("metrics"), summary)
 
