@@ -20,8 +20,9 @@
 //! up to `--jsa-max-side` only.
 //!
 //! Output in `--out`: `runs.jsonl` (one record per run, appended as it finishes; `--resume`
-//! continues from it), `runs.csv`, `cells.json` and `cells.csv` (per case and method), `<name>.md` (the table,
-//! with the paper's figures beside the hierarchy's and CBS's) and `<name>.svg`.
+//! continues from it), `runs.csv`, `cells.json` and `cells.csv` (per case and method),
+//! `<name>.md` (the table, with the paper's figures beside the hierarchy's and CBS's) and
+//! `<name>.svg`.
 //! Each run is timed alone on one thread: the runs go one after another, and the tensor
 //! library and the environment run on one thread.
 

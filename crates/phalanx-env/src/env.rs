@@ -476,7 +476,10 @@ impl Env {
         let loss = self.loss as f32;
         let w_f = self.config.formation_weight as f32;
         let c_idle = self.config.idle_cost as f32;
-        let team_idle = !self.closer.iter().any(|&c| c);
+        // Whether no agent got closer this step: the meta task's team-scope idle cost only.
+        let team_idle = task == Task::Meta
+            && self.config.idle_scope == IdleScope::Team
+            && !self.closer.iter().any(|&c| c);
         let mut team = 0.0;
         for (i, &action) in actions.iter().enumerate() {
             let r = if self.cancelled[i] {

@@ -4,7 +4,8 @@
 //! (suboptimality bound, default 1.2), `swarm`, `astar`, `jsa` (formation first, then
 //! makespan) or `jsa:W` (minimises `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the
 //! scripted rule, closing up above `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`,
-//! default 1; with a front of meta policies, the one trained at `M`), `e2e` (the end-to-end VDN baseline) and `ctce` (the centralised baseline).
+//! default 1; with a front of meta policies, the one trained at `M`), `e2e` (the end-to-end
+//! VDN baseline) and `ctce` (the centralised baseline).
 //!
 //! The learned ones are loaded by `phalanx_rl::models` (given files or the shipped models).
 

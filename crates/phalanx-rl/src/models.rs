@@ -97,8 +97,13 @@ pub fn weights_file(dir: Option<&Path>, name: &str) -> Result<PathBuf, ModelErro
             return Ok(file);
         }
     }
-    let searched: Vec<String> = candidates.iter().map(|it| it.display().to_string()).collect();
-    Err(ModelError::NoWeights { name: name.to_owned(), searched: searched.join(", ") })
+    Err(no_weights(name, &candidates))
+}
+
+/// [`ModelError::NoWeights`] for `name`, naming the directories searched.
+fn no_weights(name: &str, searched: &[PathBuf]) -> ModelError {
+    let searched: Vec<String> = searched.iter().map(|it| it.display().to_string()).collect();
+    ModelError::NoWeights { name: name.to_owned(), searched: searched.join(", ") }
 }
 
 fn default_dirs(name: &str) -> Vec<PathBuf> {
@@ -231,20 +236,14 @@ impl MetaFront {
     /// be listed, holds no meta policy, or one that is weight-conditioned, or two at one
     /// multiple.
     pub fn load(dir: Option<&Path>) -> Result<MetaFront, ModelError> {
-        let dir =
-            match dir {
-                Some(dir) => dir.to_path_buf(),
-                None => default_dirs("meta-front").into_iter().find(|d| d.is_dir()).ok_or_else(
-                    || ModelError::NoWeights {
-                        name: "meta-front".into(),
-                        searched: default_dirs("meta-front")
-                            .iter()
-                            .map(|d| d.display().to_string())
-                            .collect::<Vec<_>>()
-                            .join(", "),
-                    },
-                )?,
-            };
+        let dir = match dir {
+            Some(dir) => dir.to_path_buf(),
+            None => {
+                let candidates = default_dirs("meta-front");
+                let found = candidates.iter().find(|d| d.is_dir()).cloned();
+                found.ok_or_else(|| no_weights("meta-front", &candidates))?
+            }
+        };
         let front = |why: String| ModelError::Front { dir: dir.clone(), why };
         let listing = std::fs::read_dir(&dir).map_err(|err| front(err.to_string()))?;
         let mut subdirs: Vec<PathBuf> =
