@@ -217,9 +217,20 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         },
     };
     let meta_file = meta_file(args.meta.as_deref())?;
+    // The front is read only where a method runs one of its points (`hrl:M`, or the Pareto
+    // benchmark's defaults); the shipped one may be absent, but not broken.
+    let wants_front = match &args.methods {
+        Some(list) => list.iter().any(|spec| spec.starts_with("hrl:")),
+        None => name == "pareto",
+    };
     let meta_front = match &args.meta_front {
         Some(dir) => Some(models::MetaFront::load(Some(dir))?),
-        None => models::MetaFront::load(None).ok(),
+        None if wants_front => match models::MetaFront::load(None) {
+            Ok(front) => Some(front),
+            Err(models::ModelError::NoWeights { .. }) => None,
+            Err(err) => return Err(err.into()),
+        },
+        None => None,
     };
     let names = match &args.methods {
         Some(list) => list.clone(),

@@ -218,7 +218,8 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         bar.set_position(done as u64);
     };
     let episodes = if scripted {
-        let low = models::low_level_of(policy, cmd.formation_weights.as_deref())?;
+        let low = models::low_level_of(policy, cmd.formation_weights.as_deref())?
+            .with_footprint_penalty(cmd.leader.footprint_penalty());
         let mut hierarchy = Hierarchy::scripted(rule, low);
         evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
     } else if cmd.policy == PolicyName::Hrl {

@@ -21,14 +21,24 @@ pub(crate) fn low_level(
 ) -> anyhow::Result<(LowLevel, MetaInfo)> {
     let (pathfinding, pf_ref) = models::load(config.meta.pathfinding.as_deref(), "pathfinding")?;
     let (mut formation, fm_ref) = models::load(config.meta.formation.as_deref(), "formation")?;
+    let footprint_penalty = config.env.footprint_penalty;
     if let Some(saved) = learner.meta() {
         models::check_low_level(saved, &pf_ref, &fm_ref, "the checkpoint's meta policy")?;
+        anyhow::ensure!(
+            saved.footprint_penalty == footprint_penalty,
+            "the checkpoint's meta policy was trained with env.footprint_penalty {:?}, the \
+             settings have {footprint_penalty:?}",
+            saved.footprint_penalty
+        );
     }
     let saved = learner.meta().map(|saved| saved.weight.base.as_slice());
     let base = base_weights(config, saved, &mut formation)?;
     let weight = FormationWeight { base, multiples: config.meta.multiples };
-    let low = LowLevel::new(pathfinding, formation).context("the low-level policies")?;
-    Ok((low, MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref }))
+    let low = LowLevel::new(pathfinding, formation)
+        .context("the low-level policies")?
+        .with_footprint_penalty(footprint_penalty);
+    let info = MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref, footprint_penalty };
+    Ok((low, info))
 }
 
 /// The base weights `w_f` per team size of a meta or end-to-end run: the config's, else the
@@ -64,6 +74,11 @@ pub(crate) struct LeaderArgs {
     /// leader: the longest run of closing-up steps before the leader moves on for a step.
     #[arg(long, default_value_t = 8)]
     patience: u32,
+    /// leader: the footprint penalty of the path-finding cost channel (a team cost map that
+    /// leads the front agent where the team fits; default none, the BFS distance). A meta
+    /// policy runs with the penalty it was trained with.
+    #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(0..=phalanx_env::MAX_FOOTPRINT_PENALTY as i64))]
+    footprint_penalty: Option<u32>,
 }
 
 impl LeaderArgs {
@@ -71,10 +86,15 @@ impl LeaderArgs {
     /// refused otherwise).
     pub(crate) fn rule(&self, scripted: bool) -> anyhow::Result<ScriptedMeta> {
         anyhow::ensure!(
-            scripted || self.wait_above.is_none(),
-            "--wait-above is a flag of the leader rule only"
+            scripted || (self.wait_above.is_none() && self.footprint_penalty.is_none()),
+            "--wait-above and --footprint-penalty are flags of the leader rule only"
         );
         Ok(ScriptedMeta::new(self.wait_above, self.patience))
+    }
+
+    /// The leader rule's footprint penalty.
+    pub(crate) fn footprint_penalty(&self) -> Option<u32> {
+        self.footprint_penalty
     }
 }
 
@@ -104,11 +124,11 @@ pub(crate) enum KeepArg {
 }
 
 impl From<KeepArg> for Keep {
+    /// The library's rule of the same name (one spelling: [`Keep::NAMED`]).
     fn from(keep: KeepArg) -> Keep {
-        match keep {
-            KeepArg::Fastest => Keep::Fastest,
-            KeepArg::Tightest => Keep::Tightest,
-        }
+        use clap::ValueEnum as _;
+        let value = keep.to_possible_value().expect("every rule is named");
+        value.get_name().parse().expect("the command line names the library's rules")
     }
 }
 
@@ -117,5 +137,23 @@ impl RolloutArgs {
     pub(crate) fn rollouts(&self, seed: u64, max: usize) -> Rollouts {
         let count = (self.rollouts as usize).min(max);
         Rollouts { count, epsilon: self.random_prob, seed, keep: self.keep.into() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_command_line_names_every_keep_rule_as_the_library_does() {
+        use clap::ValueEnum as _;
+        let names: Vec<String> = KeepArg::value_variants()
+            .iter()
+            .map(|v| v.to_possible_value().unwrap().get_name().to_owned())
+            .collect();
+        let library: Vec<&str> = Keep::NAMED.iter().map(|(name, _)| *name).collect();
+        assert_eq!(names, library);
+        assert_eq!(Keep::from(KeepArg::Tightest), Keep::Tightest);
+        assert_eq!(Keep::from(KeepArg::Fastest), Keep::Fastest);
     }
 }

@@ -75,6 +75,14 @@ impl Team {
         }
     }
 
+    /// The footprint penalty of its path-finding cost channel (the hierarchy's).
+    pub(crate) fn footprint_penalty(&self) -> Option<u32> {
+        match self {
+            Team::PathFinding(_) => None,
+            Team::Hierarchy(hierarchy) => hierarchy.low.footprint_penalty(),
+        }
+    }
+
     /// The field of view its policies read.
     pub(crate) fn fov(&self) -> u32 {
         match self {
@@ -163,17 +171,19 @@ pub(crate) fn policy_for(weights: Option<&Path>, n: usize) -> anyhow::Result<Pol
     Ok(policy)
 }
 
-/// The world of `instance` for a team of `policy` of field of view `fov`, with the step
-/// limit of docs/spec.md §4 (three times the map side).
+/// The world of `instance` for a team of `policy` of field of view `fov` (and for the
+/// hierarchy the path-finding cost channel's `footprint_penalty`), with the step limit of
+/// docs/spec.md §4 (three times the map side).
 pub(crate) fn world_for(
     named: &NamedInstance,
     path: &Path,
     policy: TeamPolicy,
     fov: u32,
+    footprint_penalty: Option<u32>,
 ) -> anyhow::Result<World> {
     let instance = &named.instance;
-    let config =
-        EnvConfig { fov, step_limit: Some(3 * instance.grid().side()), ..EnvConfig::default() };
+    let step_limit = Some(3 * instance.grid().side());
+    let config = EnvConfig { fov, step_limit, footprint_penalty, ..EnvConfig::default() };
     match policy {
         TeamPolicy::Pathfinding => World::new(instance, config, 0),
         TeamPolicy::Hrl => World::hierarchy(instance, config, 0),
@@ -242,9 +252,10 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
     let n = named.instance.n_agents();
     let team = Team::load(cmd.policy, cmd.weights.as_deref(), cmd.multiple, n)?;
     if cmd.processes {
-        return processes(&cmd, n, team.fov());
+        return processes(&cmd, n, &team);
     }
-    let mut world = world_for(&named, &cmd.instance, cmd.policy, team.fov())?;
+    let footprint = team.footprint_penalty();
+    let mut world = world_for(&named, &cmd.instance, cmd.policy, team.fov(), footprint)?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();
@@ -275,7 +286,8 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
 /// `phalanx run --processes`: starts `phalanx world` and one `phalanx agent` per agent (this
 /// same binary), all on loopback under a key prefix of this run's own, and waits for them.
 /// The world prints the result; its exit code is the run's, unless an agent failed.
-fn processes(cmd: &RunCmd, n: usize, fov: u32) -> anyhow::Result<ExitCode> {
+fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
+    let fov = team.fov();
     let exe = std::env::current_exe().context("finding the phalanx binary")?;
     let endpoint = match &cmd.listen {
         Some(endpoint) => endpoint.clone(),
@@ -286,6 +298,9 @@ fn processes(cmd: &RunCmd, n: usize, fov: u32) -> anyhow::Result<ExitCode> {
     world.arg("world").arg(&cmd.instance).args(["--listen", &endpoint, "--prefix", &prefix]);
     world.args(["--fov", &fov.to_string(), "--step-timeout", &cmd.step_timeout.to_string()]);
     world.args(["--policy", cmd.policy.name()]);
+    if let Some(penalty) = team.footprint_penalty() {
+        world.args(["--footprint-penalty", &penalty.to_string()]);
+    }
     if let Some(agents) = cmd.agents {
         world.args(["--agents", &agents.to_string()]);
     }

@@ -171,7 +171,8 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
         let hierarchy = models::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
         Solver::Hierarchy(Box::new(hierarchy))
     } else if scripted {
-        let low = models::low_level_of(policy, None)?;
+        let low = models::low_level_of(policy, None)?
+            .with_footprint_penalty(cmd.leader.footprint_penalty());
         Solver::Hierarchy(Box::new(phalanx_rl::Hierarchy::scripted(rule, low)))
     } else {
         Solver::PathFinding(Box::new(policy))

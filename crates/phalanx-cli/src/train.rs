@@ -48,6 +48,10 @@ pub(crate) enum TaskName {
     PathFinding,
     /// Formation: reach a random target formation from a random placement.
     Formation,
+    /// The formation policy fine-tuned to follow a scripted leader on its way (the formation
+    /// frame of the hierarchy); starts from the shipped formation policy unless the config's
+    /// init_from names another.
+    Follow,
     /// The meta policy: choose path finding or formation per agent and step, over the frozen
     /// low-level policies, on the meta reward (Table I) weighted by w_f (Eq. 14).
     Meta,
@@ -65,6 +69,7 @@ impl TaskName {
         match self {
             TaskName::PathFinding => TrainTask::PathFinding,
             TaskName::Formation => TrainTask::Formation,
+            TaskName::Follow => TrainTask::Follow,
             TaskName::Meta => TrainTask::Meta,
             TaskName::E2e => TrainTask::EndToEnd,
             TaskName::Ctce => TrainTask::Centralised,
@@ -148,6 +153,9 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         let conditioned = matches!(config.meta.multiples, Multiples::Conditioned { .. });
         config.net.env_vec = phalanx_env::obs::VECTOR_LEN + usize::from(conditioned);
     }
+    if task == TrainTask::Follow && config.init_from.is_none() && !cmd.resume {
+        config.init_from = Some(models::weights_file(None, "formation")?);
+    }
     config.check().map_err(|err| anyhow::anyhow!("{err}"))?;
     let device = Device::flex().autodiff();
     let checkpoint = dir.join("checkpoint");
@@ -182,6 +190,12 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         learner.set_meta(meta.clone());
         write_config(&saved_config, &config)?;
         let mut collector = config.meta_collector(low, meta.weight.base).with_context(building)?;
+        restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
+        return train(collector, learner, &config, dir, cmd.resume);
+    }
+    if task == TrainTask::Follow {
+        write_config(&saved_config, &config)?;
+        let mut collector = config.follow_collector().with_context(building)?;
         restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
         return train(collector, learner, &config, dir, cmd.resume);
     }

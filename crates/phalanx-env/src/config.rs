@@ -85,6 +85,13 @@ pub struct EnvConfig {
     /// What counts as idle for `idle_cost`. Default: each agent. Not written when the default.
     #[serde(skip_serializing_if = "IdleScope::is_agent")]
     pub idle_scope: IdleScope,
+    /// The footprint penalty `λ` of the path-finding cost channel and mask: with `Some(λ)`,
+    /// each agent's cost map charges `1 + λ` for each cell on the way where the goal layout placed
+    /// with the agent there covers a blocked cell (a team cost map, `docs/hierarchy.md`);
+    /// `None` (the default, the paper's) is the BFS distance. At most 100. Not written when
+    /// `None`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub footprint_penalty: Option<u32>,
 }
 
 /// What the meta task's idle cost charges.
@@ -119,6 +126,7 @@ impl Default for EnvConfig {
             step_limit: None,
             idle_cost: 0.0,
             idle_scope: IdleScope::Agent,
+            footprint_penalty: None,
         }
     }
 }
@@ -129,6 +137,9 @@ pub enum EnvError {
     /// The field of view is even or below 3.
     #[error("field of view {0} must be odd and at least 3")]
     Fov(u32),
+    /// The footprint penalty is above its largest value.
+    #[error("footprint penalty {0} is above the largest, {max}", max = crate::MAX_FOOTPRINT_PENALTY)]
+    FootprintPenalty(u32),
     /// The instance has more agents than the occupancy grid can name.
     #[error("too many agents: {0} (at most {max})", max = crate::MAX_AGENTS)]
     TooManyAgents(usize),

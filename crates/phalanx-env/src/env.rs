@@ -15,7 +15,10 @@ use crate::marl::{ObsBuffers, ObsShape};
 use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, VECTOR_LEN};
 use crate::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
 
+mod footprint;
 mod frame;
+
+pub use footprint::MAX_FOOTPRINT_PENALTY;
 
 /// Most agents in one episode: two `u16` values are reserved in the occupancy grid.
 pub const MAX_AGENTS: usize = u16::MAX as usize - 1;
@@ -104,6 +107,11 @@ pub struct Env {
     blocked: Vec<u8>,
     /// Per agent, padded BFS distances to its goal, `n_agents` blocks of padded cells.
     dist: Vec<u32>,
+    /// Per agent, its team cost map in the same layout when the configuration has a
+    /// footprint penalty (empty otherwise): what the path-finding channel and mask read.
+    team_dist: Vec<u32>,
+    /// Scratch of the team cost maps' search: footprint flags and the buckets.
+    footprint_scratch: (Vec<u8>, Vec<Vec<u32>>),
     /// Number of padded cells.
     n_padded: usize,
     goals: Vec<Cell>,
@@ -149,6 +157,9 @@ impl Env {
         if config.fov < 3 || config.fov.is_multiple_of(2) {
             return Err(EnvError::Fov(config.fov));
         }
+        if let Some(penalty) = config.footprint_penalty.filter(|&p| p > MAX_FOOTPRINT_PENALTY) {
+            return Err(EnvError::FootprintPenalty(penalty));
+        }
         let fov = config.fov as usize;
         Ok(Env {
             config,
@@ -160,6 +171,8 @@ impl Env {
             step_limit: 0,
             blocked: Vec::new(),
             dist: Vec::new(),
+            team_dist: Vec::new(),
+            footprint_scratch: (Vec::new(), Vec::new()),
             n_padded: 0,
             goals: Vec::new(),
             goal_idx: Vec::new(),
@@ -331,6 +344,35 @@ impl Env {
                 padded_bfs(pw, goal, map, queue);
             }
         }
+        self.team_dist.clear();
+        if let Some(penalty) = self.config.footprint_penalty {
+            self.team_dist.resize(n * n_padded, UNREACHABLE);
+            let (flags, buckets) = &mut self.footprint_scratch;
+            for (agent, map) in self.team_dist.chunks_exact_mut(n_padded).enumerate() {
+                for (d, &b) in map.iter_mut().zip(&self.blocked) {
+                    *d = if b != 0 { BLOCKED } else { UNREACHABLE };
+                }
+                let sizes = (pw, pad, w, h);
+                footprint::team_map(
+                    &self.blocked,
+                    sizes,
+                    &self.goals,
+                    agent,
+                    penalty,
+                    flags,
+                    buckets,
+                    map,
+                );
+            }
+        }
+    }
+
+    /// Agent `agent`'s map of the path-finding cost channel and mask: its team cost map with
+    /// a footprint penalty, else its BFS distances.
+    #[inline]
+    fn cost_map(&self, agent: usize) -> &[u32] {
+        let maps = if self.team_dist.is_empty() { &self.dist } else { &self.team_dist };
+        &maps[agent * self.n_padded..(agent + 1) * self.n_padded]
     }
 
     /// Generates the instance for `config` (with this environment's field of view) and
@@ -631,7 +673,7 @@ impl Env {
         // The window's bottom-left cell is (x - R, y - R), padded (x, y).
         let p = self.pos_idx[agent] as usize;
         let corner = p - self.pad * pw - self.pad;
-        let dist = &self.dist[agent * self.n_padded..(agent + 1) * self.n_padded];
+        let dist = self.cost_map(agent);
         // Distances below 2^24 are exact in f32, so clamping in f32 equals clamping the
         // integer difference (and vectorises without SSE4.1's integer min/max).
         let own = dist[p] as f32;
@@ -691,7 +733,7 @@ impl Env {
                 }
             }
             Clip::PathFinding => {
-                let dist = &self.dist[agent * self.n_padded..(agent + 1) * self.n_padded];
+                let dist = self.cost_map(agent);
                 for (o, n) in out.iter_mut().zip(neighbours) {
                     *o = dist[n] <= dist[p];
                 }

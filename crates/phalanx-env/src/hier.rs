@@ -108,6 +108,8 @@ pub struct HierEnv {
     actions: Vec<Action>,
     /// The agent in front this step (the path-finding leader rule).
     front: usize,
+    /// Whether each agent chose formation this step.
+    formation_choice: Vec<bool>,
 }
 
 impl HierEnv {
@@ -130,6 +132,7 @@ impl HierEnv {
             formation: ObsBuffers::new(n_agents, low),
             actions: vec![Action::Wait; n_agents],
             front: 0,
+            formation_choice: vec![false; n_agents],
         })
     }
 
@@ -213,6 +216,7 @@ impl HierEnv {
             .filter(|&cell| self.env.distance(leader, cell).is_some())
             .unwrap_or(here);
         self.env.update_frame(leader, next);
+        self.chain_order();
         let env = &self.env;
         let shape = self.formation.shape;
         let grids = self.formation.grid.chunks_exact_mut(shape.grid_len());
@@ -223,6 +227,30 @@ impl HierEnv {
             env.write_frame_vector(agent, vector);
             env.write_mask(agent, Clip::Formation, mask);
         }
+    }
+
+    /// Reorders the agents that chose formation (the tail of the order) so that an agent
+    /// whose frame goal another of them stands on acts after that one (a team translating
+    /// moves front first, each follower into the cell the one before it leaves); otherwise
+    /// the order stays the formation rule's.
+    fn chain_order(&mut self) {
+        let order = &mut self.pathfinding.order;
+        let Some(first) = order.iter().position(|&a| self.formation_choice[a]) else {
+            return;
+        };
+        let positions = self.env.positions();
+        let goals = self.env.frame_goals();
+        let mut tail: Vec<usize> = order[first..].to_vec();
+        let mut placed = first;
+        while !tail.is_empty() {
+            let free = |a: usize, rest: &[usize]| {
+                !rest.iter().any(|&b| b != a && positions[b] == goals[a])
+            };
+            let pick = tail.iter().position(|&a| free(a, &tail)).unwrap_or(0);
+            order[placed] = tail.remove(pick);
+            placed += 1;
+        }
+        self.formation.order.clone_from(order);
     }
 
     /// Message-aware clipping: removes from `mask` (agent `agent`'s allowed actions) the moves
@@ -272,6 +300,9 @@ impl HierEnv {
         let chose = |agent: usize, choice: Choice| {
             Choice::from_index(choices[agent]).expect("a meta action is 0 or 1") == choice
         };
+        for (agent, f) in self.formation_choice.iter_mut().enumerate() {
+            *f = chose(agent, Choice::Formation);
+        }
         let mut order = std::mem::take(&mut self.pathfinding.order);
         order.clear();
         let front = self.env.begin_turns(LeaderRule::PathFinding);

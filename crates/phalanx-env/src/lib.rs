@@ -32,6 +32,7 @@
 
 mod config;
 mod env;
+mod follow;
 mod formation;
 mod hier;
 mod marl;
@@ -41,7 +42,8 @@ pub mod sim;
 mod task;
 
 pub use config::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
-pub use env::{Env, MAX_AGENTS, Step, StepInfo};
+pub use env::{Env, MAX_AGENTS, MAX_FOOTPRINT_PENALTY, Step, StepInfo};
+pub use follow::FollowEnv;
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use hier::{Choice, HierEnv, clip_claimed, meta_vector};
 pub use marl::{MarlEnv, ObsBuffers, ObsShape, StepOut, step_lockstep};

@@ -179,11 +179,11 @@ impl PyHierarchy {
         }
         let fresh = world.t() == 0;
         if fresh {
-            let env = EnvConfig {
+            let env = self.hierarchy.low.env_config(&EnvConfig {
                 fov: self.hierarchy.low.fov() as u32,
                 task: Task::Meta,
                 ..EnvConfig::default()
-            };
+            });
             let mut hier =
                 HierEnv::new(env, n, self.hierarchy.conditioned()).map_err(|err| error(&err))?;
             let mut obs = ObsBuffers::new(n, hier.meta_shape());

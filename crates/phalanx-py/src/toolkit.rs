@@ -157,11 +157,7 @@ pub(crate) fn solve(
     if rollouts == 0 {
         return Err(bad("rollouts 0: at least one rollout"));
     }
-    let keep = match keep {
-        "fastest" => Keep::Fastest,
-        "tightest" => Keep::Tightest,
-        other => return Err(bad(format!("keep {other:?}: fastest or tightest"))),
-    };
+    let keep: Keep = keep.parse().map_err(bad)?;
     let mut method = Method::named(planner, &Sources::default()).map_err(|err| error(&err))?;
     method.fits(&instance.instance).map_err(|why| bad(format!("{planner}: {why}")))?;
     let settings = Settings {

@@ -86,6 +86,7 @@ impl Default for Rollouts {
 }
 
 /// Which of an instance's rollouts counts; a solved one always before an unsolved one.
+/// Parsed from its name ([`Keep::NAMED`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Keep {
@@ -98,8 +99,24 @@ pub enum Keep {
 }
 
 impl Keep {
+    /// Every rule with its name (`fastest`, `tightest`), as the command line and Python
+    /// spell it.
+    pub const NAMED: [(&'static str, Keep); 2] =
+        [("fastest", Keep::Fastest), ("tightest", Keep::Tightest)];
+
     fn is_fastest(&self) -> bool {
         *self == Keep::Fastest
+    }
+}
+
+impl std::str::FromStr for Keep {
+    type Err = String;
+
+    fn from_str(name: &str) -> Result<Keep, String> {
+        Keep::NAMED.iter().find(|(n, _)| *n == name).map(|&(_, keep)| keep).ok_or_else(|| {
+            let names: Vec<&str> = Keep::NAMED.iter().map(|(n, _)| *n).collect();
+            format!("keep {name:?}: one of {}", names.join(", "))
+        })
     }
 }
 
@@ -398,6 +415,7 @@ fn play_hierarchy(
     envs: &mut Vec<HierEnv>,
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let conditioned = hierarchy.conditioned();
+    let env = &hierarchy.low.env_config(env);
     envs.truncate(chunk.len());
     let mut obs = Vec::with_capacity(chunk.len());
     for (e, instance) in chunk.iter().enumerate() {
@@ -485,5 +503,20 @@ impl EvalSummary {
             final_formation_loss: episodes.iter().map(|it| it.final_formation_loss).sum::<f64>()
                 / n,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Keep;
+
+    #[test]
+    fn a_keep_rule_is_parsed_from_its_name_only() {
+        assert_eq!("fastest".parse::<Keep>(), Ok(Keep::Fastest));
+        assert_eq!("tightest".parse::<Keep>(), Ok(Keep::Tightest));
+        assert_eq!(
+            "Tightest".parse::<Keep>(),
+            Err("keep \"Tightest\": one of fastest, tightest".into())
+        );
     }
 }

@@ -26,6 +26,8 @@ use crate::policy::{Policy, Turns};
 pub struct LowLevel {
     pathfinding: Policy,
     formation: Policy,
+    /// The footprint penalty of the path-finding cost channel (`EnvConfig::footprint_penalty`).
+    footprint_penalty: Option<u32>,
 }
 
 /// Why two policies cannot make a low level.
@@ -83,7 +85,25 @@ impl LowLevel {
                 return Err(LowLevelError::Mismatch { what, pathfinding: x, formation: y });
             }
         }
-        Ok(LowLevel { pathfinding, formation })
+        Ok(LowLevel { pathfinding, formation, footprint_penalty: None })
+    }
+
+    /// The same policies with the path-finding policy reading the team cost map of
+    /// `penalty` (`None`: the BFS distance, the paper's; docs/hierarchy.md).
+    #[must_use]
+    pub fn with_footprint_penalty(self, penalty: Option<u32>) -> LowLevel {
+        LowLevel { footprint_penalty: penalty, ..self }
+    }
+
+    /// The footprint penalty the path-finding policy's cost channel is computed with.
+    pub fn footprint_penalty(&self) -> Option<u32> {
+        self.footprint_penalty
+    }
+
+    /// `base` with this low level's footprint penalty: the settings of the environments it
+    /// acts in.
+    pub fn env_config(&self, base: &EnvConfig) -> EnvConfig {
+        EnvConfig { footprint_penalty: self.footprint_penalty, ..base.clone() }
     }
 
     /// The path-finding policy.
@@ -206,6 +226,10 @@ pub struct MetaInfo {
     pub pathfinding: PolicyRef,
     /// The frozen formation policy.
     pub formation: PolicyRef,
+    /// The footprint penalty of the path-finding cost channel it was trained with (absent:
+    /// none, the BFS distance).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub footprint_penalty: Option<u32>,
 }
 
 /// A policy named by the file it was read from and its weights.

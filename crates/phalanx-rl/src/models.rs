@@ -185,8 +185,22 @@ pub fn low_level_of(pathfinding: Policy, formation: Option<&Path>) -> Result<Low
     LowLevel::new(pathfinding, formation).map_err(ModelError::LowLevel)
 }
 
+/// The shipped model a meta policy's low-level policy defaults to: the one whose directory
+/// under `models/` names the file it was trained over (`models/follow/policy.bin`: `follow`),
+/// else `fallback`.
+fn shipped_name<'a>(policy: &'a PolicyRef, fallback: &'a str) -> &'a str {
+    let path = Path::new(&policy.file);
+    let models = path.parent().and_then(Path::parent).and_then(Path::file_name);
+    match (models, path.parent().and_then(Path::file_name).and_then(|d| d.to_str())) {
+        (Some(models), Some(dir)) if models == "models" => dir,
+        _ => fallback,
+    }
+}
+
 /// The hierarchy of the meta policy `meta` (read from `file` with `header`) over the
-/// low-level policies it was trained over, or those given; run at `multiple` × `w_f`.
+/// low-level policies it was trained over (by default the shipped models its files name),
+/// or those given, with the footprint penalty it was trained with; run at
+/// `multiple` × `w_f`.
 ///
 /// # Errors
 /// If the file is no meta policy, or a low-level policy cannot be read or is not the one
@@ -201,9 +215,11 @@ pub fn hierarchy(
 ) -> Result<Hierarchy, ModelError> {
     let info = header.meta.as_ref().ok_or_else(|| ModelError::NotMeta { file: file.into() })?;
     let (pf, pf_ref) = load(pathfinding, "pathfinding")?;
-    let (fm, fm_ref) = load(formation, "formation")?;
+    let (fm, fm_ref) = load(formation, shipped_name(&info.formation, "formation"))?;
     check_low_level(info, &pf_ref, &fm_ref, &file.display().to_string())?;
-    let low = LowLevel::new(pf, fm).map_err(ModelError::LowLevel)?;
+    let low = LowLevel::new(pf, fm)
+        .map_err(ModelError::LowLevel)?
+        .with_footprint_penalty(info.footprint_penalty);
     Hierarchy::new(meta, low, info.weight.clone(), multiple)
         .map_err(|source| ModelError::Hierarchy { file: file.into(), source })
 }

@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use phalanx_env::{EnvConfig, EnvError, PoolConfig, PoolEnv, Shaping, Task};
+use phalanx_env::{EnvConfig, EnvError, FollowEnv, PoolConfig, PoolEnv, Shaping, Task};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
@@ -25,6 +25,10 @@ pub enum TrainTask {
     PathFinding,
     /// The formation policy ([`Task::Formation`]: formation-training placements on the pool).
     Formation,
+    /// The formation policy trained to follow inside a moving team ([`FollowEnv`]: a
+    /// scripted leader on its path, the others on the formation frame), usually fine-tuned
+    /// from the formation policy.
+    Follow,
     /// The meta policy over the two frozen low-level policies ([`MetaEnv`]).
     Meta,
     /// The end-to-end VDN baseline (docs/spec.md §7): one network of the five moves on the meta
@@ -43,6 +47,7 @@ impl TrainTask {
         match self {
             TrainTask::PathFinding => "pathfinding",
             TrainTask::Formation => "formation",
+            TrainTask::Follow => "follow",
             TrainTask::Meta => "meta",
             TrainTask::EndToEnd => "e2e",
             TrainTask::Centralised => "ctce",
@@ -60,7 +65,9 @@ impl TrainTask {
         match self {
             TrainTask::PathFinding => Task::PathFinding,
             TrainTask::Formation => Task::Formation,
-            TrainTask::Meta | TrainTask::EndToEnd | TrainTask::Centralised => Task::Meta,
+            TrainTask::Follow | TrainTask::Meta | TrainTask::EndToEnd | TrainTask::Centralised => {
+                Task::Meta
+            }
         }
     }
 }
@@ -168,6 +175,8 @@ impl TrainConfig {
     /// - formation: teams of 3, 4 and 5 in 15 environments, episodes of at most 64 steps, the
     ///   goal-progress bonus 20 and reward scale 0.05 (the shipped formation policy's
     ///   settings);
+    /// - follow: teams of 3, 4 and 5 in 15 environments, full-length episodes, the footprint
+    ///   penalty 4, reward scale 0.1, 200 000 steps;
     /// - meta: teams of 3, 4 and 5 in 15 environments, full-length episodes (`3 × side`), a
     ///   network of two actions reading the weight multiple (`env_vec` 4), reward scale 0.1,
     ///   300 000 steps;
@@ -185,6 +194,14 @@ impl TrainConfig {
                 env: EnvConfig { step_limit: Some(64), ..base.env.clone() },
                 shaping: Some(20.0),
                 reward_scale: Some(0.05),
+                ..base
+            },
+            TrainTask::Follow => TrainConfig {
+                agent_counts: vec![3, 4, 5],
+                n_envs: 15,
+                steps: 200_000,
+                env: EnvConfig { footprint_penalty: Some(4), ..base.env.clone() },
+                reward_scale: Some(0.1),
                 ..base
             },
             TrainTask::Meta => TrainConfig {
@@ -261,6 +278,14 @@ impl TrainConfig {
         let idle = self.env.idle_cost;
         if !(idle.is_finite() && idle >= 0.0) {
             return invalid(format!("env.idle_cost {idle} must be a non-negative number"));
+        }
+        if let Some(penalty) = self.env.footprint_penalty
+            && penalty > phalanx_env::MAX_FOOTPRINT_PENALTY
+        {
+            return invalid(format!(
+                "env.footprint_penalty {penalty} is above the largest, {}",
+                phalanx_env::MAX_FOOTPRINT_PENALTY
+            ));
         }
         match self.meta.multiples {
             Multiples::Fixed { multiple } if !(multiple.is_finite() && multiple >= 0.0) => {
@@ -346,6 +371,25 @@ impl TrainConfig {
                 })
             })
             .collect::<Result<Vec<_>, EnvError>>()?;
+        Ok(Collector::new(envs, self.step_limit()))
+    }
+
+    /// The follow task's collector: `n_envs` [`FollowEnv`]s taking the team sizes in turn,
+    /// with the task's reward scale.
+    ///
+    /// # Errors
+    /// If the environment or the pool cannot be built.
+    pub fn follow_collector(&self) -> Result<Collector<FollowEnv>, EnvError> {
+        let first = FollowEnv::new(
+            &self.pool,
+            self.env.clone(),
+            self.agent_counts[0],
+            self.reward_scale_for(TrainTask::Follow),
+        )?;
+        let counts = &self.agent_counts;
+        let envs = (0..self.n_envs)
+            .map(|e| first.with_agents(counts[e % counts.len()]))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Collector::new(envs, self.step_limit()))
     }
 

@@ -217,6 +217,42 @@ fn train_writes_metrics_and_checkpoint_then_resumes() {
 }
 
 #[test]
+fn train_follow_fine_tunes_the_formation_policy_and_resumes_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = r#"{
+        "agent_counts": [3, 4], "n_envs": 2, "checkpoint_every": 4, "pool": {"n_maps": 2},
+        "env": {"step_limit": 12},
+        "learner": {"gamma": 0.95, "lr": 0.0001, "batch_size": 2, "replay_capacity": 50,
+            "sequence": {"kind": "windows", "len": 4, "burn_in": 2},
+            "target_update_interval": 10,
+            "epsilon": {"start": 0.05, "end": 0.05, "decay_steps": 1},
+            "grad_clip_norm": 10.0, "learning_starts": 2, "train_every": 4}
+    }"#;
+    std::fs::write(d.join("cfg.json"), config).unwrap();
+    let args = ["train", "follow", "--config", "cfg.json", "--steps", "80", "--out", "run"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    assert!(summary_value(&stdout, "updates") >= 4, "{stdout}");
+    // From the shipped formation policy, with the team cost map of the task's default.
+    let saved = std::fs::read_to_string(d.join("run/config.json")).unwrap();
+    assert!(saved.contains("models/formation/policy.bin"), "{saved}");
+    assert!(saved.contains("\"footprint_penalty\": 4"), "{saved}");
+    let args = ["train", "follow", "--resume", "--steps", "120", "--out", "run"];
+    check(&phalanx(d, &args), 0);
+    let args = ["train", "follow", "--config", "cfg.json", "--steps", "120", "--out", "whole"];
+    check(&phalanx(d, &args), 0);
+    let learning = |dir: &str| {
+        let text = std::fs::read_to_string(d.join(dir).join("metrics.jsonl")).unwrap();
+        text.lines().filter(|line| !line.contains("\"perf/")).map(str::to_owned).collect::<Vec<_>>()
+    };
+    assert_eq!(learning("run"), learning("whole"));
+    // The fine-tuned policy is a formation policy: the leader rule runs it.
+    let args = ["eval", "--policy", "leader", "--formation-weights", "run", "--maps", "2"];
+    let args = [&args[..], &["--size", "16", "--footprint-penalty", "4", "--json"]].concat();
+    check(&phalanx(d, &args), 0);
+}
+
+#[test]
 fn train_with_updates_then_resume_continues() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -349,7 +385,7 @@ fn learned_policies_solve_instance_files() {
     assert!(stderr.contains("not on its goal"), "{stderr}");
 
     // The scripted leader rule over the shipped low level, with and without closing up.
-    for extra in [&[][..], &["--wait-above", "0.5"]] {
+    for extra in [&[][..], &["--wait-above", "0.5"], &["--footprint-penalty", "4"]] {
         let args = [&["solve", "inst.yaml", "--planner", "leader", "-o", "lead.yaml"][..], extra];
         check(&phalanx(d, &args.concat()), 0);
         check(&phalanx(d, &["validate", "inst.yaml", "lead.yaml"]), 0);
@@ -358,9 +394,14 @@ fn learned_policies_solve_instance_files() {
     let (stdout, _) = check(&phalanx(d, &[&args[..], &["--json"]].concat()), 0);
     let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(report["episodes"], 2, "{stdout}");
-    let args = ["solve", "inst.yaml", "--planner", "pathfinding", "--wait-above", "1"];
+    for flag in [&["--wait-above", "1"][..], &["--footprint-penalty", "4"]] {
+        let args = [&["solve", "inst.yaml", "--planner", "pathfinding"][..], flag].concat();
+        let (_, stderr) = check(&phalanx(d, &args), 2);
+        assert!(stderr.contains(flag[0]), "{stderr}");
+    }
+    let args = ["solve", "inst.yaml", "--planner", "leader", "--footprint-penalty", "101"];
     let (_, stderr) = check(&phalanx(d, &args), 2);
-    assert!(stderr.contains("--wait-above"), "{stderr}");
+    assert!(stderr.contains("101") && stderr.contains("--footprint-penalty"), "{stderr}");
 
     for bad in [
         &["--rollouts", "0"][..],

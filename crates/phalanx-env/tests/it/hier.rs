@@ -85,3 +85,61 @@ fn moves_into_cells_earlier_agents_take_are_clipped() {
     hier.clip_claimed(1, &[0], &[3, 4, 4], &mut mask);
     assert_eq!(mask, [false, true, false, true, true]);
 }
+
+#[test]
+fn a_translating_team_moves_front_first() {
+    // Agents 1, 2, 3 in a row at x = 1, 2, 3 behind agent 0 at x = 4 (y = 1), all travelling
+    // right; agent 0 leads (costs all 6: by index).
+    let starts = [c(4, 1), c(1, 1), c(2, 1), c(3, 1)];
+    let goals = [c(10, 1), c(7, 1), c(8, 1), c(9, 1)];
+    let inst = instance(12, 4, &[], &starts, &goals);
+    let mut hier = HierEnv::new(EnvConfig::default(), 4, false).unwrap();
+    let mut meta = ObsBuffers::new(4, hier.meta_shape());
+    hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
+    hier.set_choices(&[0, 1, 1, 1]);
+    // The formation rule alone: nearest the centroid (x = 2.5) first, ties by index.
+    assert_eq!(hier.pathfinding_obs().order, [0, 2, 3, 1]);
+    // The leader moves right: each follower's slot is the cell of the one ahead of it, so
+    // the one ahead acts first and the next one moves into the cell it leaves.
+    hier.place_frame(Some(3));
+    assert_eq!(hier.pathfinding_obs().order, [0, 3, 2, 1]);
+    assert_eq!(hier.formation_obs().order, [0, 3, 2, 1]);
+    // A leader that waits leaves every slot where its agent stands: the rule's order.
+    hier.set_choices(&[0, 1, 1, 1]);
+    hier.place_frame(Some(4));
+    assert_eq!(hier.formation_obs().order, [0, 2, 3, 1]);
+}
+
+#[test]
+fn the_path_finding_channel_reads_the_team_cost_map_with_a_footprint_penalty() {
+    // Agent 0 below agent 1, travelling right along y = 0; a wall cell at (3, 1) is in the
+    // way of agent 1, so agent 0 may not lead the team straight on at (3, 0).
+    let inst = instance(8, 4, &[c(3, 1)], &[c(1, 0), c(1, 1)], &[c(6, 0), c(6, 1)]);
+    let plain_and_team = [None, Some(100)].map(|penalty| {
+        let config = EnvConfig { footprint_penalty: penalty, ..EnvConfig::default() };
+        let mut hier = HierEnv::new(config, 2, false).unwrap();
+        let mut meta = ObsBuffers::new(2, hier.meta_shape());
+        hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
+        hier.set_choices(&[0, 1]);
+        hier.pathfinding_obs().clone()
+    });
+    let [plain, team] = plain_and_team;
+    // Actions: 0 Up, 1 Down, 2 Left, 3 Right, 4 Wait. From (1, 0) the BFS allows Right only;
+    // the team's map also allows Up, the first step of the way around the wall above (9
+    // steps either way for a team that must not stand at (3, 0)).
+    assert_eq!(plain.mask_of(0), [false, false, false, true, true]);
+    assert_eq!(team.mask_of(0), [true, false, false, true, true]);
+    // Agent 0's cost channel (F = 9, its cell at the centre): (3, 0) is two steps closer
+    // than its own cell by the BFS, and far above it (clipped to +1) for the team.
+    let cost_at = |obs: &ObsBuffers, dx: usize| obs.grid[2 * 81 + 4 * 9 + 4 + dx];
+    assert_eq!(cost_at(&plain, 2), -2.0 / 8.0);
+    assert_eq!(cost_at(&team, 2), 1.0);
+    assert_eq!(cost_at(&team, 1), -1.0 / 8.0);
+}
+
+#[test]
+fn a_footprint_penalty_above_the_largest_is_refused() {
+    let config = EnvConfig { footprint_penalty: Some(101), ..EnvConfig::default() };
+    let err = HierEnv::new(config, 2, false).unwrap_err();
+    assert_eq!(err.to_string(), "footprint penalty 101 is above the largest, 100");
+}
