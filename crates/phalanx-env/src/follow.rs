@@ -5,7 +5,9 @@
 //! (`Env::update_frame`), and lags there: a follower that waits once stays a cell behind its
 //! slot for the rest of the trip (`docs/hierarchy.md`). [`FollowEnv`] trains it where it
 //! runs: a pool episode of the meta task ([`TrainPool::sample`]: the team in formation in the
-//! start region, the goals the same layout in the goal region) whose front agent is a
+//! start region, the goals the same layout in the goal region; half of the episodes draw the
+//! formation from 10 × 10 cells instead of the pool's 5 × 5, as wide as the formations of
+//! Table II's large maps) whose front agent is a
 //! scripted path finder, every step down its path-finding cost channel (with the
 //! configuration's footprint penalty, a team cost map) with ties drawn at random; the other
 //! agents run the policy being trained on the formation frame anchored at the leader's next
@@ -21,7 +23,7 @@
 //! An episode is cut (truncated, not terminated) when every agent stands on its goal, or at
 //! the step limit.
 
-use phalanx_core::Instance;
+use phalanx_core::{Cell, Instance};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -29,6 +31,15 @@ use crate::hier::{Choice, HierEnv};
 use crate::marl::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 use crate::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use crate::{EnvConfig, EnvError, PoolConfig, TrainPool};
+
+/// Share of the episodes whose team starts in a formation [`WIDE`] cells a side.
+const WIDE_SHARE: f64 = 0.5;
+
+/// Side of the square the wide formations are drawn from.
+const WIDE: u32 = 10;
+
+/// Draws of a wide formation before an episode falls back to the pool's own.
+const WIDE_TRIES: usize = 16;
 
 /// The cost of a cancelled move (Table I's collision penalty).
 const COLLISION: f32 = 50.0;
@@ -140,6 +151,31 @@ impl FollowEnv {
     }
 }
 
+/// A pool episode whose team starts in a formation drawn from the top-left `WIDE × WIDE`
+/// cells, the goals its translate into the bottom-right corner (as wide as the formations
+/// of Table II's large maps, whose regions are 10 cells a side; the pool's are 5), or `None`
+/// when no draw of a few gave free cells from which every agent reaches its goal.
+fn wide_instance(pool: &TrainPool, n_agents: usize, rng: &mut ChaCha8Rng) -> Option<Instance> {
+    for _ in 0..WIDE_TRIES {
+        let grid = pool.map(rng.random_range(0..pool.len() as u32) as usize);
+        let far = grid.width().min(grid.height()).saturating_sub(WIDE) as i32;
+        let starts = phalanx_gen::random_formation(WIDE, n_agents, rng);
+        let goals: Vec<Cell> = starts.iter().map(|c| c.offset(far, far)).collect();
+        let free = |c: &Cell| grid.in_bounds(*c) && !grid.is_blocked(*c);
+        if !(starts.iter().all(free) && goals.iter().all(free)) {
+            continue;
+        }
+        let connected = starts
+            .iter()
+            .zip(&goals)
+            .all(|(&s, &g)| phalanx_core::DistanceMap::bfs(grid, g).get(s).is_some());
+        if connected {
+            return Instance::new(grid.clone(), starts, goals).ok();
+        }
+    }
+    None
+}
+
 /// Agent `agent`'s scripted path-finding move: among the moves its mask allows, the one to
 /// the lowest value of its cost channel if that is below its own cell's (ties drawn from
 /// `rng`), else `Wait`.
@@ -179,7 +215,13 @@ impl MarlEnv for FollowEnv {
 
     fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let instance = self.pool.sample(self.hier.n_agents(), &mut rng);
+        let n_agents = self.hier.n_agents();
+        let instance = if rng.random_bool(WIDE_SHARE) {
+            wide_instance(&self.pool, n_agents, &mut rng)
+        } else {
+            None
+        };
+        let instance = instance.unwrap_or_else(|| self.pool.sample(n_agents, &mut rng));
         self.rng = rng;
         self.reset_to(&instance, obs).expect("pool instances fit");
     }
@@ -222,7 +264,9 @@ mod tests {
         let mut obs = ObsBuffers::new(3, follow.obs_shape());
         let mut solved = 0;
         for seed in 0..10 {
-            follow.reset(seed, &mut obs);
+            // The pool's own formations (5 × 5 cells), through which a rigid path is likely.
+            let instance = follow.pool.sample(3, &mut ChaCha8Rng::seed_from_u64(seed));
+            follow.reset_to(&instance, &mut obs).unwrap();
             let mut rigid = true;
             loop {
                 let (leader, action) = follow.leader;
@@ -248,6 +292,23 @@ mod tests {
         }
         // The footprint penalty leads the leader where its team fits, mostly.
         assert!(solved >= 5, "{solved} of 10 trips rigid to the goals");
+    }
+
+    #[test]
+    fn half_of_the_teams_start_in_formations_as_wide_as_the_large_maps() {
+        let mut follow = FollowEnv::new(&pool(), EnvConfig::default(), 4, 1.0).unwrap();
+        let mut obs = ObsBuffers::new(4, follow.obs_shape());
+        let mut wide = 0;
+        for seed in 0..40 {
+            follow.reset(seed, &mut obs);
+            let env = follow.hier().env();
+            assert_eq!(env.formation_loss(), 0.0, "the team starts in formation");
+            let far = env.starts().iter().map(|c| c.x.max(c.y)).max().unwrap();
+            assert!(far < WIDE as i32);
+            wide += usize::from(far >= 5);
+            assert!(env.on_goal().iter().all(|&on| !on));
+        }
+        assert!((10..=30).contains(&wide), "{wide} of 40 teams wider than 5 cells");
     }
 
     #[test]

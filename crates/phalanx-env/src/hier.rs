@@ -110,6 +110,8 @@ pub struct HierEnv {
     front: usize,
     /// Whether each agent chose formation this step.
     formation_choice: Vec<bool>,
+    /// The followers still to be ordered (scratch of [`HierEnv::place_frame`]).
+    unordered: Vec<usize>,
 }
 
 impl HierEnv {
@@ -133,6 +135,7 @@ impl HierEnv {
             actions: vec![Action::Wait; n_agents],
             front: 0,
             formation_choice: vec![false; n_agents],
+            unordered: Vec::with_capacity(n_agents),
         })
     }
 
@@ -240,7 +243,9 @@ impl HierEnv {
         };
         let positions = self.env.positions();
         let goals = self.env.frame_goals();
-        let mut tail: Vec<usize> = order[first..].to_vec();
+        let tail = &mut self.unordered;
+        tail.clear();
+        tail.extend_from_slice(&order[first..]);
         let mut placed = first;
         while !tail.is_empty() {
             let free = |a: usize, rest: &[usize]| {

@@ -309,6 +309,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_meta_policy_defaults_to_the_shipped_low_level_its_file_names() {
+        let named = |file: &str| PolicyRef { file: file.into(), crc32: "0".into() };
+        assert_eq!(shipped_name(&named("models/follow/policy.bin"), "formation"), "follow");
+        assert_eq!(shipped_name(&named("/x/models/formation/policy.bin"), "f"), "formation");
+        assert_eq!(shipped_name(&named("/work/runs/f/policy.bin"), "formation"), "formation");
+        assert_eq!(shipped_name(&named("policy.bin"), "formation"), "formation");
+    }
+
+    #[test]
     fn a_missing_model_names_the_directories_searched() {
         let dir = tempfile::tempdir().unwrap();
         let err = weights_file(Some(dir.path()), "pathfinding").unwrap_err().to_string();
