@@ -251,7 +251,7 @@ impl HierEnv {
             let free = |a: usize, rest: &[usize]| {
                 !rest.iter().any(|&b| b != a && positions[b] == goals[a])
             };
-            let pick = tail.iter().position(|&a| free(a, &tail)).unwrap_or(0);
+            let pick = tail.iter().position(|&a| free(a, tail)).unwrap_or(0);
             order[placed] = tail.remove(pick);
             placed += 1;
         }
