@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use phalanx_env::{EnvConfig, EnvError, FollowEnv, PoolConfig, PoolEnv, Shaping, Task};
+use phalanx_env::{EnvConfig, EnvError, FollowEnv, MarlEnv, PoolConfig, PoolEnv, Shaping, Task};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
@@ -386,11 +386,7 @@ impl TrainConfig {
             self.agent_counts[0],
             self.reward_scale_for(TrainTask::Follow),
         )?;
-        let counts = &self.agent_counts;
-        let envs = (0..self.n_envs)
-            .map(|e| first.with_agents(counts[e % counts.len()]))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(Collector::new(envs, self.step_limit()))
+        self.collector_of(&first, FollowEnv::with_agents)
     }
 
     /// The meta task's collector over `low` with the base weights `base` (`(size, w_f)`).
@@ -411,9 +407,19 @@ impl TrainConfig {
             self.agent_counts[0],
             self.reward_scale_for(TrainTask::Meta),
         )?;
+        self.collector_of(&first, MetaEnv::with_agents)
+    }
+
+    /// `n_envs` environments made from `first` by `with_agents`, taking the team sizes in
+    /// turn, in a collector of the run's step limit.
+    fn collector_of<E: MarlEnv + Send>(
+        &self,
+        first: &E,
+        with_agents: impl Fn(&E, usize) -> Result<E, EnvError>,
+    ) -> Result<Collector<E>, EnvError> {
         let counts = &self.agent_counts;
         let envs = (0..self.n_envs)
-            .map(|e| first.with_agents(counts[e % counts.len()]))
+            .map(|e| with_agents(first, counts[e % counts.len()]))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Collector::new(envs, self.step_limit()))
     }

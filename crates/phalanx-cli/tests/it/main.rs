@@ -29,6 +29,12 @@ fn check(out: &Output, code: i32) -> (String, String) {
     (stdout, stderr)
 }
 
+/// The metrics of the run in `dir` but the timings: what an exact resume reproduces.
+fn learning(dir: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join("metrics.jsonl")).unwrap();
+    text.lines().filter(|line| !line.contains("\"perf/")).map(str::to_owned).collect()
+}
+
 /// A single agent walking down its BFS gradient to its goal.
 fn walk(inst: &Instance) -> Plan {
     assert_eq!(inst.n_agents(), 1);
@@ -241,11 +247,7 @@ fn train_follow_fine_tunes_the_formation_policy_and_resumes_exactly() {
     check(&phalanx(d, &args), 0);
     let args = ["train", "follow", "--config", "cfg.json", "--steps", "120", "--out", "whole"];
     check(&phalanx(d, &args), 0);
-    let learning = |dir: &str| {
-        let text = std::fs::read_to_string(d.join(dir).join("metrics.jsonl")).unwrap();
-        text.lines().filter(|line| !line.contains("\"perf/")).map(str::to_owned).collect::<Vec<_>>()
-    };
-    assert_eq!(learning("run"), learning("whole"));
+    assert_eq!(learning(&d.join("run")), learning(&d.join("whole")));
     // The fine-tuned policy is a formation policy: the leader rule runs it.
     let args = ["eval", "--policy", "leader", "--formation-weights", "run", "--maps", "2"];
     let args = [&args[..], &["--size", "16", "--footprint-penalty", "4", "--json"]].concat();
@@ -279,11 +281,7 @@ fn train_with_updates_then_resume_continues() {
     // Exactly where it left off: the same metrics as a run that never stopped (timings aside).
     let args = ["train", "formation", "--config", "cfg.json", "--steps", "140", "--out", "whole"];
     check(&phalanx(d, &args), 0);
-    let learning = |dir: &str| {
-        let text = std::fs::read_to_string(d.join(dir).join("metrics.jsonl")).unwrap();
-        text.lines().filter(|line| !line.contains("\"perf/")).map(str::to_owned).collect::<Vec<_>>()
-    };
-    assert_eq!(learning("run"), learning("whole"));
+    assert_eq!(learning(&d.join("run")), learning(&d.join("whole")));
 
     // The run directory evaluates on fresh maps, for either team size.
     for agents in ["2", "3"] {
