@@ -277,5 +277,5 @@ def test_the_learned_solver_keeps_the_rollout_asked_for(instance_file):
     assert fastest.solved and tightest.solved
     assert tightest.metrics["formation_loss"] <= fastest.metrics["formation_loss"]
     assert tightest.metrics["makespan"] >= fastest.metrics["makespan"]
-    with pytest.raises(ValueError, match="keep \"best\": fastest or tightest"):
+    with pytest.raises(ValueError, match="keep \"best\": one of fastest, tightest"):
         phalanx.solve(instance, "hrl", keep="best")
