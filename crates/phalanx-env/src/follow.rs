@@ -7,9 +7,9 @@
 //! runs: a pool episode of the meta task ([`TrainPool::sample`]: the team in formation in the
 //! start region, the goals the same layout in the goal region; half of the episodes draw the
 //! formation from 10 × 10 cells instead of the pool's 5 × 5, as wide as the formations of
-//! Table II's large maps) whose front agent is a
-//! scripted path finder, every step down its path-finding cost channel (with the
-//! configuration's footprint penalty, a team cost map) with ties drawn at random; the other
+//! Table II's large maps) whose front agent is a scripted path finder, every step down its
+//! path-finding cost channel (with the configuration's footprint penalty, a team cost map)
+//! with ties drawn at random; the other
 //! agents run the policy being trained on the formation frame anchored at the leader's next
 //! cell, in the hierarchy's acting order. The leader's action is forced (its mask allows it
 //! alone), so the learner's joint action is the hierarchy's.
