@@ -324,9 +324,7 @@ impl Env {
         // Distance maps, each from a template with the blocked cells marked.
         self.dist.resize(n * n_padded, UNREACHABLE);
         let (template, maps) = self.dist.split_at_mut(n_padded);
-        for (d, &b) in template.iter_mut().zip(&self.blocked) {
-            *d = if b != 0 { BLOCKED } else { UNREACHABLE };
-        }
+        unsearched(template, &self.blocked);
         for map in maps.chunks_exact_mut(n_padded) {
             map.copy_from_slice(template);
         }
@@ -349,9 +347,7 @@ impl Env {
             self.team_dist.resize(n * n_padded, UNREACHABLE);
             let (flags, buckets) = &mut self.footprint_scratch;
             for (agent, map) in self.team_dist.chunks_exact_mut(n_padded).enumerate() {
-                for (d, &b) in map.iter_mut().zip(&self.blocked) {
-                    *d = if b != 0 { BLOCKED } else { UNREACHABLE };
-                }
+                unsearched(map, &self.blocked);
                 let sizes = (pw, pad, w, h);
                 footprint::team_map(
                     &self.blocked,
@@ -839,6 +835,14 @@ impl Env {
                 on_goal: &self.on_goal,
             },
         }
+    }
+}
+
+/// A distance map before its search: `BLOCKED` on the blocked cells of `blocked`,
+/// `UNREACHABLE` on the others.
+fn unsearched(map: &mut [u32], blocked: &[u8]) {
+    for (d, &b) in map.iter_mut().zip(blocked) {
+        *d = if b != 0 { BLOCKED } else { UNREACHABLE };
     }
 }
 

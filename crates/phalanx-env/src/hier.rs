@@ -108,8 +108,8 @@ pub struct HierEnv {
     actions: Vec<Action>,
     /// The agent in front this step (the path-finding leader rule).
     front: usize,
-    /// Whether each agent chose formation this step.
-    formation_choice: Vec<bool>,
+    /// How many agents chose path finding this step (the head of the order).
+    path_finders: usize,
     /// The followers still to be ordered (scratch of [`HierEnv::place_frame`]).
     unordered: Vec<usize>,
 }
@@ -134,7 +134,7 @@ impl HierEnv {
             formation: ObsBuffers::new(n_agents, low),
             actions: vec![Action::Wait; n_agents],
             front: 0,
-            formation_choice: vec![false; n_agents],
+            path_finders: 0,
             unordered: Vec::with_capacity(n_agents),
         })
     }
@@ -238,9 +238,7 @@ impl HierEnv {
     /// the order stays the formation rule's.
     fn chain_order(&mut self) {
         let order = &mut self.pathfinding.order;
-        let Some(first) = order.iter().position(|&a| self.formation_choice[a]) else {
-            return;
-        };
+        let first = self.path_finders;
         let positions = self.env.positions();
         let goals = self.env.frame_goals();
         let tail = &mut self.unordered;
@@ -305,9 +303,6 @@ impl HierEnv {
         let chose = |agent: usize, choice: Choice| {
             Choice::from_index(choices[agent]).expect("a meta action is 0 or 1") == choice
         };
-        for (agent, f) in self.formation_choice.iter_mut().enumerate() {
-            *f = chose(agent, Choice::Formation);
-        }
         let mut order = std::mem::take(&mut self.pathfinding.order);
         order.clear();
         let front = self.env.begin_turns(LeaderRule::PathFinding);
@@ -315,6 +310,7 @@ impl HierEnv {
         order.extend(
             front.iter().map(|&a| usize::from(a)).filter(|&a| chose(a, Choice::PathFinding)),
         );
+        self.path_finders = order.len();
         let centre = self.env.begin_turns(LeaderRule::Formation);
         order.extend(
             centre.iter().map(|&a| usize::from(a)).filter(|&a| chose(a, Choice::Formation)),
