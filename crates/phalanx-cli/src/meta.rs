@@ -22,6 +22,7 @@ pub(crate) fn low_level(
     let (pathfinding, pf_ref) = models::load(config.meta.pathfinding.as_deref(), "pathfinding")?;
     let (mut formation, fm_ref) = models::load(config.meta.formation.as_deref(), "formation")?;
     let footprint_penalty = config.env.footprint_penalty;
+    let place_input = config.meta.place_input;
     if let Some(saved) = learner.meta() {
         models::check_low_level(saved, &pf_ref, &fm_ref, "the checkpoint's meta policy")?;
         anyhow::ensure!(
@@ -30,6 +31,12 @@ pub(crate) fn low_level(
              settings have {footprint_penalty:?}",
             saved.footprint_penalty
         );
+        anyhow::ensure!(
+            saved.place_input == place_input,
+            "the checkpoint's meta policy was trained with meta.place_input {}, the settings \
+             have {place_input}",
+            saved.place_input
+        );
     }
     let saved = learner.meta().map(|saved| saved.weight.base.as_slice());
     let base = base_weights(config, saved, &mut formation)?;
@@ -37,7 +44,8 @@ pub(crate) fn low_level(
     let low = LowLevel::new(pathfinding, formation)
         .context("the low-level policies")?
         .with_footprint_penalty(footprint_penalty);
-    let info = MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref, footprint_penalty };
+    let info =
+        MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref, footprint_penalty, place_input };
     Ok((low, info))
 }
 

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use phalanx_env::MarlEnv;
+use phalanx_env::{MarlEnv, MetaInputs};
 use phalanx_rl::{Collector, Learner, Multiples, TrainConfig, TrainTask, metrics};
 
 use phalanx_rl::models;
@@ -112,6 +112,10 @@ pub(crate) struct TrainCmd {
     /// getting closer (`env.idle_cost`; default 0, Table I's reward).
     #[arg(long, value_name = "C", value_parser = util::non_negative)]
     idle_cost: Option<f64>,
+    /// Meta: the meta observation ends with the vector towards the agent's place in the goal
+    /// layout placed on the front agent (`meta.place_input`; docs/hierarchy.md).
+    #[arg(long)]
+    place_input: bool,
 }
 
 /// Runs `phalanx train`.
@@ -145,13 +149,18 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     if let Some(multiple) = cmd.weight_multiple {
         config.meta.multiples = Multiples::Fixed { multiple };
     }
+    if cmd.place_input {
+        anyhow::ensure!(task == TrainTask::Meta, "--place-input is for `phalanx train meta`");
+        config.meta.place_input = true;
+    }
     if let Some(w) = cmd.formation_weight {
         config.meta.multiples = Multiples::Fixed { multiple: 1.0 };
         config.meta.base_weight = Some(config.agent_counts.iter().map(|&k| (k, w)).collect());
     }
     if task == TrainTask::Meta {
         let conditioned = matches!(config.meta.multiples, Multiples::Conditioned { .. });
-        config.net.env_vec = phalanx_env::obs::VECTOR_LEN + usize::from(conditioned);
+        let inputs = MetaInputs { weight: conditioned, place: config.meta.place_input };
+        config.net.env_vec = inputs.vector_len();
     }
     if task == TrainTask::Follow && config.init_from.is_none() && !cmd.resume {
         config.init_from = Some(models::weights_file(None, "formation")?);

@@ -27,7 +27,7 @@ use phalanx_core::{Cell, Instance};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::hier::{Choice, HierEnv};
+use crate::hier::{Choice, HierEnv, MetaInputs};
 use crate::marl::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 use crate::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use crate::{EnvConfig, EnvError, PoolConfig, TrainPool};
@@ -89,7 +89,7 @@ impl FollowEnv {
         reward_scale: f32,
     ) -> Result<FollowEnv, EnvError> {
         let env = EnvConfig { idle_cost: 0.0, ..env };
-        let hier = HierEnv::new(env, n_agents, false)?;
+        let hier = HierEnv::new(env, n_agents, MetaInputs::default())?;
         let meta = ObsBuffers::new(n_agents, hier.meta_shape());
         Ok(FollowEnv {
             hier,

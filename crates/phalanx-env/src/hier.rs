@@ -87,12 +87,49 @@ pub fn clip_claimed(
     }
 }
 
-/// The meta observation's vector of an agent: its path-finding vector, followed, for a
-/// weight-conditioned meta policy, by the formation-weight multiple.
-pub fn meta_vector(pathfinding: &[f32], multiple: Option<f32>, out: &mut [f32]) {
-    out[..pathfinding.len()].copy_from_slice(pathfinding);
-    if let Some(multiple) = multiple {
-        out[pathfinding.len()] = multiple;
+/// What a meta observation's vector holds after the path-finding goal vector: the
+/// formation-weight multiple of the episode (a weight-conditioned meta policy), then the goal
+/// vector towards the agent's place in the layout placed on the front agent
+/// ([`Env::write_place_vector`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MetaInputs {
+    /// The weight multiple.
+    pub weight: bool,
+    /// The vector towards the agent's place.
+    pub place: bool,
+}
+
+impl MetaInputs {
+    /// Length of the meta observation's vector.
+    pub fn vector_len(self) -> usize {
+        VECTOR_LEN + usize::from(self.weight) + if self.place { VECTOR_LEN } else { 0 }
+    }
+}
+
+/// The meta observation's vector of an agent (`inputs.vector_len()` long): its path-finding
+/// vector, then, as `inputs` says, the formation-weight multiple and the vector towards its
+/// place.
+///
+/// # Panics
+/// If `out` is not `inputs.vector_len()` long, or `inputs` has an input that is `None` here.
+fn meta_vector(
+    pathfinding: &[f32],
+    inputs: MetaInputs,
+    multiple: Option<f32>,
+    place: Option<&[f32]>,
+    out: &mut [f32],
+) {
+    assert_eq!(out.len(), inputs.vector_len(), "a meta vector of another length");
+    let (head, rest) = out.split_at_mut(VECTOR_LEN);
+    head.copy_from_slice(pathfinding);
+    let rest = if inputs.weight {
+        rest[0] = multiple.expect("a multiple for a weight-conditioned meta policy");
+        &mut rest[1..]
+    } else {
+        rest
+    };
+    if inputs.place {
+        rest.copy_from_slice(place.expect("a place vector for a meta policy that reads it"));
     }
 }
 
@@ -101,8 +138,10 @@ pub fn meta_vector(pathfinding: &[f32], multiple: Option<f32>, out: &mut [f32]) 
 pub struct HierEnv {
     env: Env,
     n_agents: usize,
-    weight_input: bool,
+    inputs: MetaInputs,
     multiple: f32,
+    /// Scratch: one agent's vector towards its place.
+    place: [f32; VECTOR_LEN],
     pathfinding: ObsBuffers,
     formation: ObsBuffers,
     actions: Vec<Action>,
@@ -116,20 +155,21 @@ pub struct HierEnv {
 
 impl HierEnv {
     /// An environment for teams of `n_agents` with the field of view and step limit of
-    /// `config` (its task becomes [`Task::Meta`]). With `weight_input`, the meta observation's
-    /// vector ends with the formation-weight multiple of the episode.
+    /// `config` (its task becomes [`Task::Meta`]), whose meta observation's vector holds
+    /// `inputs`.
     ///
     /// # Panics
     /// If `n_agents` is 0.
-    pub fn new(config: EnvConfig, n_agents: usize, weight_input: bool) -> Result<Self, EnvError> {
+    pub fn new(config: EnvConfig, n_agents: usize, inputs: MetaInputs) -> Result<Self, EnvError> {
         assert!(n_agents > 0, "an environment needs agents");
         let env = Env::new(EnvConfig { task: Task::Meta, ..config })?;
         let low = env.obs_shape();
         Ok(HierEnv {
             env,
             n_agents,
-            weight_input,
+            inputs,
             multiple: 0.0,
+            place: [0.0; VECTOR_LEN],
             pathfinding: ObsBuffers::new(n_agents, low),
             formation: ObsBuffers::new(n_agents, low),
             actions: vec![Action::Wait; n_agents],
@@ -139,11 +179,11 @@ impl HierEnv {
         })
     }
 
-    /// Sizes of one agent's meta observation: the four channels, the goal vector (and the
-    /// weight multiple), two actions.
+    /// Sizes of one agent's meta observation: the four channels, the vector of
+    /// [`MetaInputs::vector_len`], two actions.
     pub fn meta_shape(&self) -> ObsShape {
         ObsShape {
-            env_vec: VECTOR_LEN + usize::from(self.weight_input),
+            env_vec: self.inputs.vector_len(),
             n_actions: Choice::COUNT,
             ..self.env.obs_shape()
         }
@@ -173,7 +213,7 @@ impl HierEnv {
 
     /// Starts an episode on `instance` whose meta reward weighs `L_f` by `formation_weight`
     /// per agent; `multiple` is what the meta observation reads as the weight (the
-    /// multiple of the base weight, with `weight_input`); writes the meta observation.
+    /// multiple of the base weight, when the inputs have it); writes the meta observation.
     ///
     /// # Errors
     /// If the instance has another agent count or the simulator refuses it.
@@ -279,14 +319,19 @@ impl HierEnv {
         self.env.observe_clipped(&mut self.pathfinding, Clip::PathFinding);
         meta.grid.copy_from_slice(&self.pathfinding.grid);
         let width = meta.shape.env_vec;
-        let multiple = self.weight_input.then_some(self.multiple);
-        for (agent, out) in meta.vec.chunks_exact_mut(width).enumerate() {
-            meta_vector(self.pathfinding.vec_of(agent), multiple, out);
-        }
-        meta.action_mask.fill(true);
         let order = self.env.begin_turns(LeaderRule::PathFinding);
         meta.order.clear();
         meta.order.extend(order.iter().map(|&agent| usize::from(agent)));
+        let front = meta.order[0];
+        let multiple = self.inputs.weight.then_some(self.multiple);
+        for (agent, out) in meta.vec.chunks_exact_mut(width).enumerate() {
+            if self.inputs.place {
+                self.env.write_place_vector(agent, front, &mut self.place);
+            }
+            let place = self.inputs.place.then_some(&self.place[..]);
+            meta_vector(self.pathfinding.vec_of(agent), self.inputs, multiple, place, out);
+        }
+        meta.action_mask.fill(true);
     }
 
     /// Records the agents' choices (`choices[agent]`, meta action indices) and writes the

@@ -45,7 +45,7 @@ pub use config::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
 pub use env::{Env, MAX_AGENTS, MAX_FOOTPRINT_PENALTY, Step, StepInfo};
 pub use follow::FollowEnv;
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
-pub use hier::{Choice, HierEnv, clip_claimed, meta_vector};
+pub use hier::{Choice, HierEnv, MetaInputs, clip_claimed};
 pub use marl::{MarlEnv, ObsBuffers, ObsShape, StepOut, step_lockstep};
 pub use phalanx_gen::GenConfig;
 pub use pool::{EvalMaps, PoolConfig, TrainPool, eval_seed, train_seed};

@@ -13,7 +13,9 @@
 //! and for a team of the hierarchy (docs/runtime.md), whose step has two phases:
 //!
 //! - [`Message::Meta`], world → one agent: an [`Observation`] (the path-finding observation,
-//!   which the meta policy reads too) whose rank is the agent's in the meta order;
+//!   which the meta policy reads too, its goal vector followed by the goal vector towards
+//!   the agent's place in the layout placed on the front agent) whose rank is the agent's in
+//!   the meta order;
 //! - [`Message::Choice`], agent → every agent: an [`Action`] whose action is the agent's meta
 //!   choice (0 path finding, 1 formation) and whose rank is its meta rank;
 //! - [`Frame`], world → one agent: its formation-frame observation, its rank in the step's
@@ -133,7 +135,8 @@ pub enum Message {
     Action(Action),
     /// The end of an episode.
     End(End),
-    /// The hierarchy's first phase: the path-finding observation, ranked in the meta order.
+    /// The hierarchy's first phase: the path-finding observation (the goal vector followed by
+    /// the place vector), ranked in the meta order.
     Meta(Observation),
     /// An agent's meta choice (0 path finding, 1 formation), laid out as an action.
     Choice(Action),

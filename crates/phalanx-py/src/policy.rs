@@ -185,7 +185,7 @@ impl PyHierarchy {
                 ..EnvConfig::default()
             });
             let mut hier =
-                HierEnv::new(env, n, self.hierarchy.conditioned()).map_err(|err| error(&err))?;
+                HierEnv::new(env, n, self.hierarchy.meta_inputs()).map_err(|err| error(&err))?;
             let mut obs = ObsBuffers::new(n, hier.meta_shape());
             let w_f = self.hierarchy.formation_weight(n);
             hier.reset_to(instance, w_f, self.hierarchy.multiple, &mut obs)

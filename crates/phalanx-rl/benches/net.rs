@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use burn::tensor::Device;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use phalanx_env::{EnvConfig, HierEnv, ObsBuffers};
+use phalanx_env::{EnvConfig, HierEnv, MetaInputs, ObsBuffers};
 use phalanx_gen::GenConfig;
 use phalanx_rl::learner::obs_shape;
 use phalanx_rl::policy_file::load_policy_any;
@@ -146,7 +146,10 @@ fn hierarchy_decision(c: &mut Criterion) {
     for agents in [1, 3] {
         let config = GenConfig { size: 32, density: 0.15, n_agents: agents, seed: 3, fov: 9 };
         let instance = phalanx_gen::generate(&config).unwrap();
-        let mut envs = vec![HierEnv::new(EnvConfig::default(), agents, true).unwrap()];
+        let mut envs = vec![
+            HierEnv::new(EnvConfig::default(), agents, MetaInputs { weight: true, place: false })
+                .unwrap(),
+        ];
         let mut obs = vec![ObsBuffers::new(agents, envs[0].meta_shape())];
         envs[0].reset_to(&instance, 1.0, 1.0, &mut obs[0]).unwrap();
         let (mut choices, mut actions) = (vec![0_u8; agents], vec![0_u8; agents]);

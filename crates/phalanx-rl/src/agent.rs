@@ -10,6 +10,7 @@
 //! trajectory of the batched hierarchy (tested over the in-process bus in phalanx-runtime).
 
 use phalanx_env::Choice;
+use phalanx_env::obs::VECTOR_LEN;
 
 use crate::hierarchy::{Hierarchy, MetaPolicy};
 use crate::net::masked_argmax;
@@ -212,8 +213,10 @@ pub struct AgentHierarchy {
     meta: AgentPolicy,
     pathfinding: AgentPolicy,
     formation: AgentPolicy,
-    /// The multiple the meta observation ends with (a weight-conditioned meta policy).
+    /// The multiple the meta observation holds (a weight-conditioned meta policy).
     multiple: Option<f32>,
+    /// Whether the meta observation ends with the vector towards the agent's place.
+    place_input: bool,
     /// This step's meta and path-finding features.
     observed: Option<(Features, Features)>,
     /// This step's formation features.
@@ -235,6 +238,7 @@ impl AgentHierarchy {
             pathfinding: AgentPolicy::new(low.pathfinding().clone(), agent)?,
             formation: AgentPolicy::new(low.formation().clone(), agent)?,
             multiple: hierarchy.conditioned().then_some(hierarchy.multiple as f32),
+            place_input: hierarchy.place_input,
             observed: None,
             framed: None,
         })
@@ -253,20 +257,26 @@ impl AgentHierarchy {
         (self.observed, self.framed) = (None, None);
     }
 
-    /// This step's path-finding observation (`grid` `[C, F, F]`, `vector`): the path-finding
-    /// and meta recurrent passes (the meta policy reads the same grid, and the vector with
-    /// the weight multiple of a conditioned meta policy).
+    /// This step's path-finding observation (`grid` `[C, F, F]`, `vector`: the goal vector,
+    /// then the vector towards the agent's place, `phalanx_env::Env::write_place_vector`):
+    /// the path-finding and meta recurrent passes. The path-finding policy reads the goal
+    /// vector; the meta policy reads the same grid and the goal vector, with the weight
+    /// multiple of a conditioned meta policy and the place vector of one that reads it.
     ///
     /// # Errors
     /// Inputs of other sizes than the networks'.
     pub fn observe(&mut self, grid: &[f32], vector: &[f32]) -> Result<(), AgentError> {
-        let mut meta_vector = vec![0.0; vector.len() + usize::from(self.multiple.is_some())];
-        phalanx_env::meta_vector(vector, self.multiple, &mut meta_vector);
+        let (goal, place) = vector.split_at(VECTOR_LEN.min(vector.len()));
+        let mut meta_vector = goal.to_vec();
+        meta_vector.extend(self.multiple);
+        if self.place_input {
+            meta_vector.extend_from_slice(place);
+        }
         // Both inputs are checked before either recurrent state moves.
         self.meta.check_inputs(grid, &meta_vector)?;
-        self.pathfinding.check_inputs(grid, vector)?;
+        self.pathfinding.check_inputs(grid, goal)?;
         let meta = self.meta.observe(grid, &meta_vector)?;
-        let pathfinding = self.pathfinding.observe(grid, vector)?;
+        let pathfinding = self.pathfinding.observe(grid, goal)?;
         (self.observed, self.framed) = (Some((meta, pathfinding)), None);
         Ok(())
     }

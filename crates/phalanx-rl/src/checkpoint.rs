@@ -10,6 +10,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::learner::Learner;
+use crate::net::QNetConfig;
 use crate::policy_file::{
     CheckpointError, Header, MAGIC, POLICY_MAGIC, VERSION, apply, check_record, param_shapes,
     read_file, record_error, sections, write_atomic,
@@ -120,20 +121,32 @@ impl Learner {
 
 impl Learner {
     /// Start from the online network of a checkpoint or policy file (a warm start: both
-    /// networks take its weights), keeping this learner's optimiser, counters and RNG.
+    /// networks take its weights), keeping this learner's optimiser, counters and RNG. A
+    /// network whose environment vector is shorter and is otherwise this one's also serves:
+    /// the inputs it lacks start with zero weights ([`crate::QNet::widen_env_vec`]).
     ///
     /// # Errors
     /// If the file cannot be read or holds another network.
     pub fn init_from(&mut self, path: &Path) -> Result<(), CheckpointError> {
         let file = read_file(path)?;
-        if file.header.net_config != self.net_config {
+        let found = &file.header.net_config;
+        let widened = QNetConfig { env_vec: self.net_config.env_vec, ..found.clone() };
+        if found.env_vec > self.net_config.env_vec || widened != self.net_config {
             return Err(CheckpointError::ConfigMismatch {
                 path: path.to_path_buf(),
                 expected: Box::new(self.net_config.clone()),
                 found: Box::new(file.header.net_config),
             });
         }
-        self.online = apply(self.online.clone(), &file.online, path, "online")?;
+        let extra = self.net_config.env_vec - found.env_vec;
+        if extra == 0 {
+            self.online = apply(self.online.clone(), &file.online, path, "online")?;
+        } else {
+            let device = self.online.devices().into_iter().next().unwrap_or_default();
+            let net = found.init(&mut ChaCha8Rng::seed_from_u64(0), &device);
+            let net = apply(net, &file.online, path, "online")?.widen_env_vec(found, extra);
+            self.online = self.online.clone().load_record(net.into_record());
+        }
         self.target = self.online.valid();
         Ok(())
     }

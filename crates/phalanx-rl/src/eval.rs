@@ -414,14 +414,14 @@ fn play_hierarchy(
     rng: &mut ChaCha8Rng,
     envs: &mut Vec<HierEnv>,
 ) -> Result<Vec<EvalEpisode>, EnvError> {
-    let conditioned = hierarchy.conditioned();
+    let inputs = hierarchy.meta_inputs();
     let env = &hierarchy.low.env_config(env);
     envs.truncate(chunk.len());
     let mut obs = Vec::with_capacity(chunk.len());
     for (e, instance) in chunk.iter().enumerate() {
         let n = instance.n_agents();
         let fits = |it: &HierEnv| it.n_agents() == n;
-        let hier = reuse(envs, e, fits, || HierEnv::new(env.clone(), n, conditioned))?;
+        let hier = reuse(envs, e, fits, || HierEnv::new(env.clone(), n, inputs))?;
         let mut buffers = ObsBuffers::new(n, hier.meta_shape());
         let multiple = hierarchy.multiple;
         let w_f = hierarchy.formation_weight(n);

@@ -12,8 +12,8 @@
 
 use phalanx_env::obs::N_ACTIONS;
 use phalanx_env::{
-    Choice, EnvConfig, EnvError, HierEnv, MarlEnv, ObsBuffers, ObsShape, PoolConfig, StepOut,
-    TrainPool,
+    Choice, EnvConfig, EnvError, HierEnv, MarlEnv, MetaInputs, ObsBuffers, ObsShape, PoolConfig,
+    StepOut, TrainPool,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -230,6 +230,10 @@ pub struct MetaInfo {
     /// none, the BFS distance).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub footprint_penalty: Option<u32>,
+    /// Whether its observation ends with the vector towards the agent's place in the layout
+    /// placed on the front agent ([`MetaInputs::place`]; absent: no).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub place_input: bool,
 }
 
 /// A policy named by the file it was read from and its weights.
@@ -331,6 +335,7 @@ pub struct MetaEnv {
     pool: TrainPool,
     low: LowLevel,
     weight: FormationWeight,
+    place_input: bool,
     reward_scale: f32,
     rng: ChaCha8Rng,
     actions: Vec<u8>,
@@ -339,19 +344,22 @@ pub struct MetaEnv {
 impl MetaEnv {
     /// Generates the pool of `pool` once; teams of `n_agents`, the field of view and step
     /// limit of `env`; rewards multiplied by `reward_scale` (a training aid; greedy policies
-    /// do not change).
+    /// do not change). With `place_input`, the meta observation ends with the vector towards
+    /// the agent's place ([`MetaInputs::place`]).
     ///
     /// # Panics
     /// If `n_agents` is 0 or the pool has no maps.
     pub fn new(
         low: LowLevel,
         weight: FormationWeight,
+        place_input: bool,
         pool: &PoolConfig,
         env: EnvConfig,
         n_agents: usize,
         reward_scale: f32,
     ) -> Result<MetaEnv, EnvError> {
-        let hier = HierEnv::new(env, n_agents, weight.conditioned())?;
+        let inputs = MetaInputs { weight: weight.conditioned(), place: place_input };
+        let hier = HierEnv::new(env, n_agents, inputs)?;
         let pool = TrainPool::new(pool)?;
         assert!(!pool.is_empty(), "the training pool has no maps");
         Ok(MetaEnv {
@@ -359,6 +367,7 @@ impl MetaEnv {
             pool,
             low,
             weight,
+            place_input,
             reward_scale,
             rng: ChaCha8Rng::seed_from_u64(0),
             actions: vec![0; n_agents],
@@ -371,13 +380,14 @@ impl MetaEnv {
     /// # Panics
     /// If `n_agents` is 0.
     pub fn with_agents(&self, n_agents: usize) -> Result<MetaEnv, EnvError> {
-        let hier =
-            HierEnv::new(self.hier.env().config().clone(), n_agents, self.weight.conditioned())?;
+        let inputs = MetaInputs { weight: self.weight.conditioned(), place: self.place_input };
+        let hier = HierEnv::new(self.hier.env().config().clone(), n_agents, inputs)?;
         Ok(MetaEnv {
             hier,
             pool: self.pool.clone(),
             low: self.low.clone(),
             weight: self.weight.clone(),
+            place_input: self.place_input,
             reward_scale: self.reward_scale,
             rng: ChaCha8Rng::seed_from_u64(0),
             actions: vec![0; n_agents],
@@ -433,6 +443,8 @@ pub struct Hierarchy {
     pub weight: Option<FormationWeight>,
     /// The multiple of the base weight to run at.
     pub multiple: f64,
+    /// Whether the meta observation ends with the vector towards the agent's place.
+    pub place_input: bool,
 }
 
 /// What chooses each agent's low-level policy every step.
@@ -520,7 +532,8 @@ pub enum HierarchyError {
 
 impl Hierarchy {
     /// The hierarchy of a meta policy (2 actions, the low level's field of view, a vector
-    /// input of 3 or, weight-conditioned, 4) over `low`.
+    /// input of [`MetaInputs::vector_len`]: 3, one more weight-conditioned, three more with
+    /// `place_input`) over `low`.
     ///
     /// # Errors
     /// If the meta network does not fit or `weight` has no base weight.
@@ -529,9 +542,10 @@ impl Hierarchy {
         low: LowLevel,
         weight: FormationWeight,
         multiple: f64,
+        place_input: bool,
     ) -> Result<Hierarchy, HierarchyError> {
         let c = meta.config();
-        let vec = phalanx_env::obs::VECTOR_LEN + usize::from(weight.conditioned());
+        let vec = MetaInputs { weight: weight.conditioned(), place: place_input }.vector_len();
         for (what, found, expected) in [
             ("actions", c.n_actions, Choice::COUNT),
             ("a field of view of", c.fov, low.fov()),
@@ -549,17 +563,29 @@ impl Hierarchy {
             low,
             weight: Some(weight),
             multiple,
+            place_input,
         })
     }
 
     /// The hierarchy of a scripted meta policy over `low`.
     pub fn scripted(rule: ScriptedMeta, low: LowLevel) -> Hierarchy {
-        Hierarchy { meta: MetaPolicy::Scripted(rule), low, weight: None, multiple: 0.0 }
+        Hierarchy {
+            meta: MetaPolicy::Scripted(rule),
+            low,
+            weight: None,
+            multiple: 0.0,
+            place_input: false,
+        }
     }
 
     /// Whether the meta observation carries the weight multiple.
     pub fn conditioned(&self) -> bool {
         self.weight.as_ref().is_some_and(FormationWeight::conditioned)
+    }
+
+    /// What the meta observation's vector holds.
+    pub fn meta_inputs(&self) -> MetaInputs {
+        MetaInputs { weight: self.conditioned(), place: self.place_input }
     }
 
     /// The largest team it runs: the agent slots of the low level and of a learned meta

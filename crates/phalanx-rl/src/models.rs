@@ -220,7 +220,7 @@ pub fn hierarchy(
     let low = LowLevel::new(pf, fm)
         .map_err(ModelError::LowLevel)?
         .with_footprint_penalty(info.footprint_penalty);
-    Hierarchy::new(meta, low, info.weight.clone(), multiple)
+    Hierarchy::new(meta, low, info.weight.clone(), multiple, info.place_input)
         .map_err(|source| ModelError::Hierarchy { file: file.into(), source })
 }
 

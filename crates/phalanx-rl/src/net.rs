@@ -314,6 +314,21 @@ impl RecurrentState {
 }
 
 impl QNet {
+    /// This network (of `config`) with `extra` more environment-vector inputs after those
+    /// it has, their weights zero: it computes exactly what it did whatever they hold, so a
+    /// network that reads more can start from one that reads less.
+    pub fn widen_env_vec(mut self, config: &QNetConfig, extra: usize) -> QNet {
+        let first = &mut self.dense[0];
+        let weight = first.weight.val(); // [d_in, E]
+        let [d_in, width] = weight.dims();
+        let at = d_in - config.n_agents_max; // the agent-slot one-hot follows the vector
+        let zeros = Tensor::<2>::zeros([extra, width], &weight.device());
+        let head = weight.clone().slice([0..at, 0..width]);
+        let tail = weight.slice([at..d_in, 0..width]);
+        first.weight = Param::initialized(first.weight.id, Tensor::cat(vec![head, zeros, tail], 0));
+        self
+    }
+
     /// Whether the network is centralised ([`QNetConfig::centralised`]).
     pub fn is_centralised(&self) -> bool {
         self.team.is_some()

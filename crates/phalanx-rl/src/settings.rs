@@ -125,6 +125,9 @@ pub struct MetaSettings {
     pub multiples: Multiples,
     /// How the base weights are estimated when not given.
     pub estimate: WeightConfig,
+    /// Whether the meta observation ends with the vector towards the agent's place in the
+    /// goal layout placed on the front agent (`phalanx_env::MetaInputs::place`; default no).
+    pub place_input: bool,
 }
 
 impl Default for MetaSettings {
@@ -135,6 +138,7 @@ impl Default for MetaSettings {
             base_weight: None,
             multiples: Multiples::Conditioned { min: 0.01, max: 3.0, p_zero: 0.1 },
             estimate: WeightConfig::default(),
+            place_input: false,
         }
     }
 }
@@ -402,6 +406,7 @@ impl TrainConfig {
         let first = MetaEnv::new(
             low,
             weight,
+            self.meta.place_input,
             &self.pool,
             self.env.clone(),
             self.agent_counts[0],

@@ -3,7 +3,7 @@
 
 use phalanx_core::{Action as Move, Instance, Plan};
 use phalanx_env::obs::N_ACTIONS;
-use phalanx_env::{Choice, EnvConfig, EnvError, HierEnv, ObsBuffers, Task, TaskEnv};
+use phalanx_env::{Choice, EnvConfig, EnvError, HierEnv, MetaInputs, ObsBuffers, Task, TaskEnv};
 use phalanx_msg::{Action, End, EndReason, Frame, Message, NEAR, Near, Observation};
 
 use crate::Topic;
@@ -107,8 +107,11 @@ impl World {
     ) -> Result<World, WorldFault> {
         let n = instance.n_agents();
         // The weight multiple is the agents' to add to their meta observation, and the
-        // formation weight only weighs the meta reward: neither is the world's.
-        let mut env = HierEnv::new(config, n, false)?;
+        // formation weight only weighs the meta reward: neither is the world's. The vector
+        // towards each agent's place goes to every agent; a meta policy that does not read
+        // it ignores it.
+        let inputs = MetaInputs { weight: false, place: true };
+        let mut env = HierEnv::new(config, n, inputs)?;
         let mut meta = ObsBuffers::new(n, env.meta_shape());
         env.reset_to(instance, 0.0, 0.0, &mut meta)?;
         let positions = env.env().positions().to_vec();
@@ -167,8 +170,14 @@ impl World {
                 observations(episode, step, obs, &obs.order).map(Message::Observation).collect()
             }
             Team::Hierarchy(hier) => {
+                // The path-finding observation, its vector followed by the place vector.
                 let obs = hier.env.pathfinding_obs();
-                observations(episode, step, obs, &hier.meta.order).map(Message::Meta).collect()
+                observations(episode, step, obs, &hier.meta.order)
+                    .map(|mut o| {
+                        o.vector = hier.meta.vec_of(usize::from(o.agent)).to_vec();
+                        Message::Meta(o)
+                    })
+                    .collect()
             }
         };
         self.queue(messages);

@@ -9,11 +9,13 @@ use phalanx_core::Instance;
 use phalanx_env::{EnvConfig, Task};
 use phalanx_gen::{GenConfig, generate};
 use phalanx_msg::{Message, decode};
-use phalanx_rl::{AgentHierarchy, AgentPolicy, Hierarchy, Policy, Rollouts};
+use phalanx_rl::{AgentHierarchy, AgentPolicy, Hierarchy, Policy, QNetConfig, Rollouts};
 use phalanx_runtime::inproc::{Endpoint, bus};
 use phalanx_runtime::{
     Agent, HierAgent, Machine, Topic, Transport, TransportError, World, run_agent, run_world,
 };
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 fn policy() -> Policy {
     phalanx_rl::models::load(None, "pathfinding").expect("the shipped policy").0
@@ -21,6 +23,22 @@ fn policy() -> Policy {
 
 fn hierarchy() -> Hierarchy {
     phalanx_rl::models::load_hierarchy(None, 1.0).expect("the shipped meta policy")
+}
+
+/// A meta policy that reads the vector towards each agent's place (an untrained network over
+/// the shipped low level, with the shipped policy's weights).
+fn place_hierarchy() -> Hierarchy {
+    let shipped = hierarchy();
+    let config = QNetConfig { n_actions: 2, env_vec: 6, ..QNetConfig::default() };
+    let net = config.init(&mut ChaCha8Rng::seed_from_u64(1), &Default::default());
+    let meta = Policy::new(&net, config);
+    let weight = shipped.weight.expect("a learned meta policy has weights");
+    Hierarchy::new(meta, shipped.low, weight, 1.0, true).expect("a meta network that fits")
+}
+
+/// The hierarchy a team of the hierarchy runs.
+fn hierarchy_of(team: Team) -> Hierarchy {
+    if team == Team::PlaceHierarchy { place_hierarchy() } else { hierarchy() }
 }
 
 fn config(instance: &Instance) -> EnvConfig {
@@ -32,6 +50,8 @@ fn config(instance: &Instance) -> EnvConfig {
 enum Team {
     PathFinding,
     Hierarchy,
+    /// The hierarchy with a meta policy that reads the place vector.
+    PlaceHierarchy,
 }
 
 /// An agent's endpoint that checks what the agent publishes (actions, and for the hierarchy
@@ -48,7 +68,7 @@ impl Transport for Checked {
         assert_eq!(topic, Topic::Actions, "an agent publishes on the actions topic only");
         let (sent, choice) = match decode(&bytes) {
             Ok(Message::Action(action)) => (action, false),
-            Ok(Message::Choice(choice)) if self.team == Team::Hierarchy => (choice, true),
+            Ok(Message::Choice(choice)) if self.team != Team::PathFinding => (choice, true),
             other => panic!("an agent sends actions (and choices) only, not {other:?}"),
         };
         if sent.step == FAULT_STEP {
@@ -105,10 +125,10 @@ fn decentralised_with(
     let (mut world_end, agent_ends) = bus(n as u16);
     let mut world = match team {
         Team::PathFinding => World::new(instance, config(instance), 0),
-        Team::Hierarchy => World::hierarchy(instance, config(instance), 0),
+        Team::Hierarchy | Team::PlaceHierarchy => World::hierarchy(instance, config(instance), 0),
     }
     .unwrap();
-    let (policy, hierarchy) = (policy(), hierarchy());
+    let (policy, hierarchy) = (policy(), hierarchy_of(team));
     std::thread::scope(|scope| {
         for (id, end) in agent_ends.into_iter().enumerate() {
             if !present[id] {
@@ -127,7 +147,7 @@ fn decentralised_with(
                     let mut agent = Agent::new(id as u16, decider);
                     scope.spawn(move || go(&mut agent, &mut end, silence));
                 }
-                Team::Hierarchy => {
+                Team::Hierarchy | Team::PlaceHierarchy => {
                     let decider = AgentHierarchy::new(&hierarchy, id).unwrap();
                     let mut agent = HierAgent::new(id as u16, decider);
                     scope.spawn(move || go(&mut agent, &mut end, silence));
@@ -166,6 +186,12 @@ fn the_decentralised_run_is_the_batched_policy_s_trajectory() {
 
 #[test]
 fn the_decentralised_hierarchy_is_the_batched_hierarchy_s_trajectory() {
+    for team in [Team::Hierarchy, Team::PlaceHierarchy] {
+        same_trajectory(team);
+    }
+}
+
+fn same_trajectory(team: Team) {
     for (size, n_agents, seed) in [(20, 3, 3), (32, 5, 8)] {
         let instance =
             generate(&GenConfig { size, density: 0.15, n_agents, seed, fov: 9 }).unwrap();
@@ -173,7 +199,7 @@ fn the_decentralised_hierarchy_is_the_batched_hierarchy_s_trajectory() {
         let rollouts = Rollouts { count: 1, epsilon: 0.0, seed: 0, ..Rollouts::default() };
         let env = EnvConfig { task: Task::Meta, ..config(&instance) };
         let episode = phalanx_rl::evaluate_hierarchy(
-            &mut hierarchy(),
+            &mut hierarchy_of(team),
             &env,
             std::slice::from_ref(&instance),
             1,
@@ -185,11 +211,11 @@ fn the_decentralised_hierarchy_is_the_batched_hierarchy_s_trajectory() {
         let choices = episode.choices.as_ref().unwrap();
         assert!(
             choices.contains(&0) && choices.contains(&1),
-            "{size}²: the meta policy runs both low-level policies"
+            "{team:?}, {size}²: the meta policy runs both low-level policies"
         );
         let everyone = vec![true; n_agents];
-        let world = decentralised(&instance, Team::Hierarchy, &everyone, Duration::from_secs(10));
-        assert_eq!(world.plan(), &episode.plan, "{size}², {n_agents} agents");
+        let world = decentralised(&instance, team, &everyone, Duration::from_secs(10));
+        assert_eq!(world.plan(), &episode.plan, "{team:?}, {size}², {n_agents} agents");
         assert_eq!((world.missed(), world.missed_choices(), world.stale()), (0, 0, 0));
     }
 }

@@ -451,6 +451,33 @@ fn meta_training_weight_and_hierarchy_run_end_to_end() {
         let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
         assert_eq!(report["episodes"], 2, "{stdout}");
     }
+    // A meta policy that reads the place vector, warm-started from the one above (its three
+    // new inputs weighted zero); solved alone and run decentralised, the same plan.
+    let place = config.replacen('{', r#"{"init_from": "run/policy.bin", "#, 1);
+    std::fs::write(d.join("place.json"), place).unwrap();
+    let args = ["train", "meta", "--config", "place.json", "--place-input", "--steps", "60"];
+    check(&phalanx(d, &[&args[..], &["--out", "place"]].concat()), 0);
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("place/config.json")).unwrap())
+            .unwrap();
+    // The goal vector, the weight multiple (the task's default is weight-conditioned), the
+    // place vector.
+    let inputs = (&saved["net"]["env_vec"], &saved["meta"]["place_input"]);
+    assert_eq!(inputs, (&7.into(), &true.into()));
+    check(&phalanx(d, &["gen", "--size", "16", "--seed", "3", "-o", "inst.yaml"]), 0);
+    let solve = ["solve", "inst.yaml", "--planner", "hrl", "--weights", "place", "--rollouts"];
+    check(&phalanx(d, &[&solve[..], &["1", "--partial", "-o", "solved.yaml"]].concat()), 0);
+    let run = ["run", "inst.yaml", "--policy", "hrl", "--weights", "place", "-o", "run.yaml"];
+    check(&phalanx(d, &run), 0);
+    let schedule = |file: &str| {
+        let text = std::fs::read_to_string(d.join(file)).unwrap();
+        text[text.find("schedule:").unwrap()..].to_string()
+    };
+    assert_eq!(schedule("solved.yaml"), schedule("run.yaml"));
+    // A resumed run refuses other inputs than its checkpoint's.
+    let args = ["train", "meta", "--config", "meta.json", "--resume", "--out", "place"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("place_input") || stderr.contains("env_vec"), "{stderr}");
     // The end-to-end baseline: the same settings with the five moves; evaluated, drawn and
     // benchmarked as a method.
     let args = ["train", "e2e", "--config", "meta.json", "--steps", "60", "--out", "e2e"];

@@ -164,6 +164,19 @@ impl Env {
         write_goal_vector(p, g, self.fov, out);
     }
 
+    /// Agent `agent`'s goal vector towards its *place*: its cell of the goal layout placed
+    /// so that agent `front`'s cell is `front`'s goal cell of the layout (scaled as
+    /// [`Env::write_vector`]; zeros for `front` itself and for an agent on its place). Unlike
+    /// the frame, it is placed on where the front agent stands, before anyone moves.
+    ///
+    /// # Panics
+    /// If `agent` or `front` is not an agent.
+    pub fn write_place_vector(&self, agent: usize, front: usize, out: &mut [f32]) {
+        let (goal, anchor) = (self.goals[agent], self.goals[front]);
+        let place = self.pos[front].offset(goal.x - anchor.x, goal.y - anchor.y);
+        write_goal_vector(self.pos[agent], place, self.fov, out);
+    }
+
     /// Whether `cell` is a free cell of the map (outside the map is blocked).
     fn padded_free(&self, cell: Cell) -> bool {
         let inside = |v: i32, side: u32| (0..side as i32).contains(&v);

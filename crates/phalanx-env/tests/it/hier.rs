@@ -1,7 +1,7 @@
 //! The hierarchy's episode: the low level's acting order after the meta choices and where the
 //! formation frame is anchored.
 
-use phalanx_env::{EnvConfig, HierEnv, ObsBuffers};
+use phalanx_env::{EnvConfig, HierEnv, MetaInputs, ObsBuffers};
 
 use crate::{c, instance};
 
@@ -9,7 +9,7 @@ use crate::{c, instance};
 /// agent 2 is in front (nearest its goal), agent 1 at the centre.
 fn row() -> (HierEnv, ObsBuffers) {
     let inst = instance(12, 4, &[], &[c(1, 1), c(2, 1), c(3, 1)], &[c(9, 1), c(10, 1), c(11, 1)]);
-    let mut hier = HierEnv::new(EnvConfig::default(), 3, false).unwrap();
+    let mut hier = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(3, hier.meta_shape());
     hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
     (hier, meta)
@@ -47,7 +47,7 @@ fn the_frame_moves_with_a_path_finding_leader() {
 #[test]
 fn a_team_closing_up_gathers_on_its_front_agent() {
     let inst = instance(12, 4, &[], &[c(1, 1), c(2, 2), c(4, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
-    let mut hier = HierEnv::new(EnvConfig::default(), 3, false).unwrap();
+    let mut hier = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(3, hier.meta_shape());
     hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
     // Costs 7, 8, 6: agent 2 is in front; everyone chooses formation.
@@ -93,7 +93,7 @@ fn a_translating_team_moves_front_first() {
     let starts = [c(4, 1), c(1, 1), c(2, 1), c(3, 1)];
     let goals = [c(10, 1), c(7, 1), c(8, 1), c(9, 1)];
     let inst = instance(12, 4, &[], &starts, &goals);
-    let mut hier = HierEnv::new(EnvConfig::default(), 4, false).unwrap();
+    let mut hier = HierEnv::new(EnvConfig::default(), 4, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(4, hier.meta_shape());
     hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
     hier.set_choices(&[0, 1, 1, 1]);
@@ -117,7 +117,7 @@ fn the_path_finding_channel_reads_the_team_cost_map_with_a_footprint_penalty() {
     let inst = instance(8, 4, &[c(3, 1)], &[c(1, 0), c(1, 1)], &[c(6, 0), c(6, 1)]);
     let plain_and_team = [None, Some(100)].map(|penalty| {
         let config = EnvConfig { footprint_penalty: penalty, ..EnvConfig::default() };
-        let mut hier = HierEnv::new(config, 2, false).unwrap();
+        let mut hier = HierEnv::new(config, 2, MetaInputs::default()).unwrap();
         let mut meta = ObsBuffers::new(2, hier.meta_shape());
         hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
         hier.set_choices(&[0, 1]);
@@ -140,6 +140,35 @@ fn the_path_finding_channel_reads_the_team_cost_map_with_a_footprint_penalty() {
 #[test]
 fn a_footprint_penalty_above_the_largest_is_refused() {
     let config = EnvConfig { footprint_penalty: Some(101), ..EnvConfig::default() };
-    let err = HierEnv::new(config, 2, false).unwrap_err();
+    let err = HierEnv::new(config, 2, MetaInputs::default()).unwrap_err();
     assert_eq!(err.to_string(), "footprint penalty 101 is above the largest, 100");
+}
+
+#[test]
+fn the_meta_observation_reads_the_multiple_and_the_place() {
+    // Goals in a row; agent 2 in front (cost 4), the layout placed on it: (4, 1), (5, 1),
+    // (6, 1). Agent 0 stands one row above its place, agent 1 one cell left of it.
+    let inst = instance(12, 4, &[], &[c(4, 2), c(4, 1), c(6, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
+    let inputs = MetaInputs { weight: true, place: true };
+    let mut hier = HierEnv::new(EnvConfig::default(), 3, inputs).unwrap();
+    assert_eq!(inputs.vector_len(), 7);
+    assert_eq!(hier.meta_shape().env_vec, 7);
+    let mut meta = ObsBuffers::new(3, hier.meta_shape());
+    hier.reset_to(&inst, 1.0, 0.5, &mut meta).unwrap();
+    assert_eq!(meta.order[0], 2);
+    let pathfinding = hier.pathfinding_obs();
+    for agent in 0..3 {
+        let v = meta.vec_of(agent);
+        assert_eq!(&v[..3], pathfinding.vec_of(agent), "agent {agent}: the goal vector first");
+        assert_eq!(v[3], 0.5, "agent {agent}: then the multiple");
+    }
+    // Each place is one cell away (1 / (1 + 9) for a view of 9).
+    assert_eq!(&meta.vec_of(0)[4..], [0.0, -1.0, 0.1]);
+    assert_eq!(&meta.vec_of(1)[4..], [1.0, 0.0, 0.1]);
+    assert_eq!(&meta.vec_of(2)[4..], [0.0, 0.0, 0.0]);
+    // Without the inputs, the vector is the goal vector alone.
+    let mut plain = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
+    let mut meta = ObsBuffers::new(3, plain.meta_shape());
+    plain.reset_to(&inst, 1.0, 0.5, &mut meta).unwrap();
+    assert_eq!(meta.vec_of(0), plain.pathfinding_obs().vec_of(0));
 }

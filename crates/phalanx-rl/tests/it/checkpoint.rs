@@ -111,6 +111,15 @@ fn warm_start_takes_the_weights_only() {
     let mut mismatched = Learner::new(other, corridor_learner(), &[2], 1, &device);
     let err = mismatched.init_from(&path).unwrap_err();
     assert!(matches!(err, CheckpointError::ConfigMismatch { .. }), "{err}");
+    // A network with a longer vector starts from it, the new inputs weighted zero; one with
+    // a shorter vector is refused.
+    let wider = QNetConfig { env_vec: corridor_net().env_vec + 2, ..corridor_net() };
+    let mut widened = Learner::new(wider, corridor_learner(), &[2], 1, &device);
+    widened.init_from(&path).unwrap();
+    let narrower = QNetConfig { env_vec: corridor_net().env_vec - 1, ..corridor_net() };
+    let mut narrow = Learner::new(narrower, corridor_learner(), &[2], 1, &device);
+    let err = narrow.init_from(&path).unwrap_err();
+    assert!(matches!(err, CheckpointError::ConfigMismatch { .. }), "{err}");
 }
 
 fn file_len(path: &Path) -> u64 {

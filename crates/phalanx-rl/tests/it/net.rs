@@ -152,3 +152,35 @@ fn the_weight_count_is_the_networks() {
         (Some(185_733), Some(333_317))
     );
 }
+
+#[test]
+fn a_widened_network_ignores_its_new_inputs() {
+    let device = crate::plain_device();
+    let config = QNetConfig::default();
+    let wide = QNetConfig { env_vec: config.env_vec + 3, ..config.clone() };
+    let net = config.init(&mut ChaCha8Rng::seed_from_u64(5), &device);
+    let (c, f) = (config.channels, config.fov);
+    let obs = Tensor::<5>::random([2, 3, c, f, f], Distribution::Default, &device);
+    let narrow_vec = Tensor::<3>::random([2, 3, config.vec_dim()], Distribution::Default, &device);
+    let q = |net: &QNet, config: &QNetConfig, vec: Tensor<3>| {
+        let (features, _) = net.forward_recurrent(obs.clone(), vec, None, &[2]);
+        let msg = Tensor::<3>::zeros([2, 3, config.message_dim()], &device);
+        net.head(features, msg).into_data().try_to_vec::<f32>().unwrap()
+    };
+    let before = q(&net, &config, narrow_vec.clone());
+    let widened = net.widen_env_vec(&config, 3);
+    // The new inputs sit between the environment vector and the agent-slot one-hot.
+    let env = narrow_vec.clone().slice([0..2, 0..3, 0..config.env_vec]);
+    let slot = narrow_vec.slice([0..2, 0..3, config.env_vec..config.vec_dim()]);
+    for fill in [0.0, 1.0, -7.5] {
+        let extra = Tensor::<3>::full([2, 3, 3], fill, &device);
+        let vec = Tensor::cat(vec![env.clone(), extra, slot.clone()], 2);
+        assert_eq!(q(&widened, &wide, vec), before, "new inputs at {fill}");
+    }
+    let mut moved = Tensor::<3>::zeros([2, 3, wide.vec_dim()], &device);
+    moved = moved.slice_assign(
+        [0..2, 0..3, wide.env_vec..wide.env_vec + 1],
+        Tensor::ones([2, 3, 1], &device),
+    );
+    assert_ne!(q(&widened, &wide, moved), before, "the slot one-hot is still read");
+}

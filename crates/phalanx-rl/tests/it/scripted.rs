@@ -2,14 +2,14 @@
 //! closes up, and for how long.
 
 use phalanx_core::{Cell, Grid, Instance};
-use phalanx_env::{EnvConfig, HierEnv, ObsBuffers};
+use phalanx_env::{EnvConfig, HierEnv, MetaInputs, ObsBuffers};
 use phalanx_rl::ScriptedMeta;
 
 /// A team of three on an open 12 × 6 map; goals a row at y = 1 from x = 8.
 fn episode(starts: &[Cell]) -> (HierEnv, ObsBuffers) {
     let goals = [Cell::new(8, 1), Cell::new(9, 1), Cell::new(10, 1)];
     let inst = Instance::new(Grid::from_fn(12, 6, |_| false), starts.to_vec(), goals.to_vec());
-    let mut hier = HierEnv::new(EnvConfig::default(), 3, false).unwrap();
+    let mut hier = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(3, hier.meta_shape());
     hier.reset_to(&inst.unwrap(), 1.0, 1.0, &mut meta).unwrap();
     (hier, meta)
