@@ -29,7 +29,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::hier::{Choice, HierEnv, MetaInputs};
 use crate::marl::{MarlEnv, ObsBuffers, ObsShape, StepOut};
-use crate::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
+use crate::obs::N_ACTIONS;
 use crate::{EnvConfig, EnvError, PoolConfig, TrainPool};
 
 /// Share of the episodes whose team starts in a formation [`WIDE`] cells a side.
@@ -205,12 +205,7 @@ impl MarlEnv for FollowEnv {
     }
 
     fn obs_shape(&self) -> ObsShape {
-        ObsShape {
-            channels: CHANNELS,
-            fov: self.hier.env().config().fov as usize,
-            env_vec: VECTOR_LEN,
-            n_actions: N_ACTIONS,
-        }
+        self.hier.env().obs_shape()
     }
 
     fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
@@ -252,6 +247,7 @@ impl MarlEnv for FollowEnv {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::obs::{CHANNELS, VECTOR_LEN};
 
     fn pool() -> PoolConfig {
         PoolConfig { n_maps: 2, ..PoolConfig::default() }

@@ -106,33 +106,6 @@ impl MetaInputs {
     }
 }
 
-/// The meta observation's vector of an agent (`inputs.vector_len()` long): its path-finding
-/// vector, then, as `inputs` says, the formation-weight multiple and the vector towards its
-/// place.
-///
-/// # Panics
-/// If `out` is not `inputs.vector_len()` long, or `inputs` has an input that is `None` here.
-fn meta_vector(
-    pathfinding: &[f32],
-    inputs: MetaInputs,
-    multiple: Option<f32>,
-    place: Option<&[f32]>,
-    out: &mut [f32],
-) {
-    assert_eq!(out.len(), inputs.vector_len(), "a meta vector of another length");
-    let (head, rest) = out.split_at_mut(VECTOR_LEN);
-    head.copy_from_slice(pathfinding);
-    let rest = if inputs.weight {
-        rest[0] = multiple.expect("a multiple for a weight-conditioned meta policy");
-        &mut rest[1..]
-    } else {
-        rest
-    };
-    if inputs.place {
-        rest.copy_from_slice(place.expect("a place vector for a meta policy that reads it"));
-    }
-}
-
 /// One episode of the meta task with the meta, path-finding and formation observations.
 #[derive(Debug, Clone)]
 pub struct HierEnv {
@@ -140,8 +113,6 @@ pub struct HierEnv {
     n_agents: usize,
     inputs: MetaInputs,
     multiple: f32,
-    /// Scratch: one agent's vector towards its place.
-    place: [f32; VECTOR_LEN],
     pathfinding: ObsBuffers,
     formation: ObsBuffers,
     actions: Vec<Action>,
@@ -169,7 +140,6 @@ impl HierEnv {
             n_agents,
             inputs,
             multiple: 0.0,
-            place: [0.0; VECTOR_LEN],
             pathfinding: ObsBuffers::new(n_agents, low),
             formation: ObsBuffers::new(n_agents, low),
             actions: vec![Action::Wait; n_agents],
@@ -187,6 +157,11 @@ impl HierEnv {
             n_actions: Choice::COUNT,
             ..self.env.obs_shape()
         }
+    }
+
+    /// What the meta observation's vector holds.
+    pub fn meta_inputs(&self) -> MetaInputs {
+        self.inputs
     }
 
     /// Agents per episode.
@@ -323,13 +298,19 @@ impl HierEnv {
         meta.order.clear();
         meta.order.extend(order.iter().map(|&agent| usize::from(agent)));
         let front = meta.order[0];
-        let multiple = self.inputs.weight.then_some(self.multiple);
+        // The layout of `MetaInputs`: the goal vector, the multiple, the place vector.
         for (agent, out) in meta.vec.chunks_exact_mut(width).enumerate() {
+            let (goal, rest) = out.split_at_mut(VECTOR_LEN);
+            goal.copy_from_slice(self.pathfinding.vec_of(agent));
+            let place = if self.inputs.weight {
+                rest[0] = self.multiple;
+                &mut rest[1..]
+            } else {
+                rest
+            };
             if self.inputs.place {
-                self.env.write_place_vector(agent, front, &mut self.place);
+                self.env.write_place_vector(agent, front, place);
             }
-            let place = self.inputs.place.then_some(&self.place[..]);
-            meta_vector(self.pathfinding.vec_of(agent), self.inputs, multiple, place, out);
         }
         meta.action_mask.fill(true);
     }

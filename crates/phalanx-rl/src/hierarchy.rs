@@ -335,7 +335,6 @@ pub struct MetaEnv {
     pool: TrainPool,
     low: LowLevel,
     weight: FormationWeight,
-    place_input: bool,
     reward_scale: f32,
     rng: ChaCha8Rng,
     actions: Vec<u8>,
@@ -367,7 +366,6 @@ impl MetaEnv {
             pool,
             low,
             weight,
-            place_input,
             reward_scale,
             rng: ChaCha8Rng::seed_from_u64(0),
             actions: vec![0; n_agents],
@@ -380,14 +378,13 @@ impl MetaEnv {
     /// # Panics
     /// If `n_agents` is 0.
     pub fn with_agents(&self, n_agents: usize) -> Result<MetaEnv, EnvError> {
-        let inputs = MetaInputs { weight: self.weight.conditioned(), place: self.place_input };
-        let hier = HierEnv::new(self.hier.env().config().clone(), n_agents, inputs)?;
+        let config = self.hier.env().config().clone();
+        let hier = HierEnv::new(config, n_agents, self.hier.meta_inputs())?;
         Ok(MetaEnv {
             hier,
             pool: self.pool.clone(),
             low: self.low.clone(),
             weight: self.weight.clone(),
-            place_input: self.place_input,
             reward_scale: self.reward_scale,
             rng: ChaCha8Rng::seed_from_u64(0),
             actions: vec![0; n_agents],

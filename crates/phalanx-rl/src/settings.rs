@@ -363,19 +363,14 @@ impl TrainConfig {
             PoolEnv::new(task.env_task(), &self.pool, self.env.clone(), self.agent_counts[0])?
                 .with_shaping(shaping)
                 .with_reward_scale(self.reward_scale_for(task));
-        let counts = &self.agent_counts;
-        let envs = (0..self.n_envs)
-            .map(|e| {
-                let k = counts[e % counts.len()];
-                let env = first.with_agents(k)?;
-                Ok(if task.is_end_to_end() {
-                    env.with_formation_weight(self.end_to_end_weight(k))
-                } else {
-                    env
-                })
+        self.collector_of(&first, |first, k| {
+            let env = first.with_agents(k)?;
+            Ok(if task.is_end_to_end() {
+                env.with_formation_weight(self.end_to_end_weight(k))
+            } else {
+                env
             })
-            .collect::<Result<Vec<_>, EnvError>>()?;
-        Ok(Collector::new(envs, self.step_limit()))
+        })
     }
 
     /// The follow task's collector: `n_envs` [`FollowEnv`]s taking the team sizes in turn,
