@@ -116,6 +116,10 @@ pub(crate) struct TrainCmd {
     /// layout placed on the front agent (`meta.place_input`; docs/hierarchy.md).
     #[arg(long)]
     place_input: bool,
+    /// Meta: the share S of training episodes whose team starts in a formation as wide as
+    /// Table II's large maps' (`meta.wide_share`; default 0).
+    #[arg(long, value_name = "S", value_parser = util::fraction)]
+    wide_share: Option<f64>,
 }
 
 /// Runs `phalanx train`.
@@ -152,6 +156,10 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     if cmd.place_input {
         anyhow::ensure!(task == TrainTask::Meta, "--place-input is for `phalanx train meta`");
         config.meta.place_input = true;
+    }
+    if let Some(share) = cmd.wide_share {
+        anyhow::ensure!(task == TrainTask::Meta, "--wide-share is for `phalanx train meta`");
+        config.meta.wide_share = share;
     }
     if let Some(w) = cmd.formation_weight {
         config.meta.multiples = Multiples::Fixed { multiple: 1.0 };

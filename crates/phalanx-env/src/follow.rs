@@ -23,7 +23,7 @@
 //! An episode is cut (truncated, not terminated) when every agent stands on its goal, or at
 //! the step limit.
 
-use phalanx_core::{Cell, Instance};
+use phalanx_core::Instance;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -32,14 +32,8 @@ use crate::marl::{MarlEnv, ObsBuffers, ObsShape, StepOut};
 use crate::obs::N_ACTIONS;
 use crate::{EnvConfig, EnvError, PoolConfig, TrainPool};
 
-/// Share of the episodes whose team starts in a formation [`WIDE`] cells a side.
+/// Share of the episodes whose team starts in a wide formation ([`TrainPool::sample_wide`]).
 const WIDE_SHARE: f64 = 0.5;
-
-/// Side of the square the wide formations are drawn from.
-const WIDE: u32 = 10;
-
-/// Draws of a wide formation before an episode falls back to the pool's own.
-const WIDE_TRIES: usize = 16;
 
 /// The cost of a cancelled move (Table I's collision penalty).
 const COLLISION: f32 = 50.0;
@@ -151,31 +145,6 @@ impl FollowEnv {
     }
 }
 
-/// A pool episode whose team starts in a formation drawn from the top-left `WIDE × WIDE`
-/// cells, the goals its translate into the bottom-right corner (as wide as the formations
-/// of Table II's large maps, whose regions are 10 cells a side; the pool's are 5), or `None`
-/// when no draw of a few gave free cells from which every agent reaches its goal.
-fn wide_instance(pool: &TrainPool, n_agents: usize, rng: &mut ChaCha8Rng) -> Option<Instance> {
-    for _ in 0..WIDE_TRIES {
-        let grid = pool.map(rng.random_range(0..pool.len() as u32) as usize);
-        let far = grid.width().min(grid.height()).saturating_sub(WIDE) as i32;
-        let starts = phalanx_gen::random_formation(WIDE, n_agents, rng);
-        let goals: Vec<Cell> = starts.iter().map(|c| c.offset(far, far)).collect();
-        let free = |c: &Cell| grid.in_bounds(*c) && !grid.is_blocked(*c);
-        if !(starts.iter().all(free) && goals.iter().all(free)) {
-            continue;
-        }
-        let connected = starts
-            .iter()
-            .zip(&goals)
-            .all(|(&s, &g)| phalanx_core::DistanceMap::bfs(grid, g).get(s).is_some());
-        if connected {
-            return Instance::new(grid.clone(), starts, goals).ok();
-        }
-    }
-    None
-}
-
 /// Agent `agent`'s scripted path-finding move: among the moves its mask allows, the one to
 /// the lowest value of its cost channel if that is below its own cell's (ties drawn from
 /// `rng`), else `Wait`.
@@ -211,12 +180,7 @@ impl MarlEnv for FollowEnv {
     fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let n_agents = self.hier.n_agents();
-        let instance = if rng.random_bool(WIDE_SHARE) {
-            wide_instance(&self.pool, n_agents, &mut rng)
-        } else {
-            None
-        };
-        let instance = instance.unwrap_or_else(|| self.pool.sample(n_agents, &mut rng));
+        let instance = self.pool.sample_episode(n_agents, WIDE_SHARE, &mut rng);
         self.rng = rng;
         self.reset_to(&instance, obs).expect("pool instances fit");
     }
@@ -300,7 +264,7 @@ mod tests {
             let env = follow.hier().env();
             assert_eq!(env.formation_loss(), 0.0, "the team starts in formation");
             let far = env.starts().iter().map(|c| c.x.max(c.y)).max().unwrap();
-            assert!(far < WIDE as i32);
+            assert!(far < crate::WIDE_SIDE as i32);
             wide += usize::from(far >= 5);
             assert!(env.on_goal().iter().all(|&on| !on));
         }

@@ -7,7 +7,7 @@
 //! evaluation), so no evaluation seed equals a training seed whatever the indices. The two
 //! types share no constructor and no method takes the other's indices.
 
-use phalanx_core::{Grid, Instance};
+use phalanx_core::{Cell, DistanceMap, Grid, Instance};
 use phalanx_gen::{GenConfig, random_formation, region_side};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -39,6 +39,14 @@ pub fn train_seed(base: u64, index: u64) -> u64 {
 pub fn eval_seed(base: u64, index: u64) -> u64 {
     splitmix64(splitmix64(EVAL_DOMAIN ^ base) ^ index) | EVAL_BIT
 }
+
+/// Side of the square from which a *wide* formation is drawn ([`TrainPool::sample_wide`]):
+/// the start region of Table II's large maps (docs/spec.md §2), twice the pool's.
+pub const WIDE_SIDE: u32 = 10;
+
+/// Draws of a wide formation before [`TrainPool::sample_episode`] falls back to the pool's
+/// own region.
+const WIDE_TRIES: usize = 16;
 
 /// Settings of the training pool. Defaults are the paper's (docs/spec.md §5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -131,6 +139,50 @@ impl TrainPool {
         // The regions are free squares and the generator checked one start-goal pair, so
         // every start reaches every goal.
         Instance::new(grid.clone(), cells, goals).expect("pool maps connect the two regions")
+    }
+
+    /// A path-finding episode whose team is drawn from the top-left [`WIDE_SIDE`] cells a side
+    /// instead of the pool's start region, its goals translated into the bottom-right
+    /// corner: formations as wide as those of Table II's large maps. `None` when no draw of a
+    /// few gave free cells from which every agent reaches its goal (the pool's maps keep
+    /// only their own regions free), or when the maps are not wider than the square.
+    pub fn sample_wide(&self, n_agents: usize, rng: &mut ChaCha8Rng) -> Option<Instance> {
+        for _ in 0..WIDE_TRIES {
+            let grid = &self.maps[rng.random_range(0..self.maps.len() as u32) as usize];
+            let far = grid.width().min(grid.height()).checked_sub(WIDE_SIDE).filter(|&f| f > 0)?;
+            let far = far as i32;
+            let starts = random_formation(WIDE_SIDE, n_agents, rng);
+            let goals: Vec<Cell> = starts.iter().map(|c| c.offset(far, far)).collect();
+            let free = |c: &Cell| grid.in_bounds(*c) && !grid.is_blocked(*c);
+            if !(starts.iter().all(free) && goals.iter().all(free)) {
+                continue;
+            }
+            let connected = starts
+                .iter()
+                .zip(&goals)
+                .all(|(&s, &g)| DistanceMap::bfs(grid, g).get(s).is_some());
+            if connected {
+                return Instance::new(grid.clone(), starts, goals).ok();
+            }
+        }
+        None
+    }
+
+    /// A path-finding episode that is wide ([`TrainPool::sample_wide`]) with probability
+    /// `wide_share`, else (or when no wide draw succeeds) [`TrainPool::sample`]'s. With a
+    /// share of 0 nothing more is drawn from `rng` than `sample` draws.
+    ///
+    /// # Panics
+    /// As [`TrainPool::sample`].
+    pub fn sample_episode(
+        &self,
+        n_agents: usize,
+        wide_share: f64,
+        rng: &mut ChaCha8Rng,
+    ) -> Instance {
+        let wide = wide_share > 0.0 && rng.random_bool(wide_share);
+        let instance = if wide { self.sample_wide(n_agents, rng) } else { None };
+        instance.unwrap_or_else(|| self.sample(n_agents, rng))
     }
 
     /// A formation-training episode on a map drawn uniformly (see

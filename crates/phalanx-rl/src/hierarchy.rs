@@ -327,8 +327,9 @@ impl FormationWeight {
 
 /// The meta policy's training environment: a [`HierEnv`] on the training pool, whose actions
 /// are the agents' meta choices; inside each step the frozen low level acts greedily.
-/// Resets draw the map, the start and goal formation ([`TrainPool::sample`]) and, for a
-/// weight-conditioned policy, the weight multiple, all from the reset's seed.
+/// Resets draw the map, the start and goal formation ([`TrainPool::sample_episode`]: wide
+/// in a share of the episodes) and, for a weight-conditioned policy, the weight multiple,
+/// all from the reset's seed.
 #[derive(Clone, Debug)]
 pub struct MetaEnv {
     hier: HierEnv,
@@ -336,6 +337,7 @@ pub struct MetaEnv {
     low: LowLevel,
     weight: FormationWeight,
     reward_scale: f32,
+    wide_share: f64,
     rng: ChaCha8Rng,
     actions: Vec<u8>,
 }
@@ -367,9 +369,16 @@ impl MetaEnv {
             low,
             weight,
             reward_scale,
+            wide_share: 0.0,
             rng: ChaCha8Rng::seed_from_u64(0),
             actions: vec![0; n_agents],
         })
+    }
+
+    /// The same environment with a share `wide_share` of its episodes' teams drawn wide
+    /// ([`TrainPool::sample_wide`]; 0 at first).
+    pub fn with_wide_share(self, wide_share: f64) -> MetaEnv {
+        MetaEnv { wide_share, ..self }
     }
 
     /// The same pool, low level and weights for teams of `n_agents` (the pool is shared, not
@@ -386,6 +395,7 @@ impl MetaEnv {
             low: self.low.clone(),
             weight: self.weight.clone(),
             reward_scale: self.reward_scale,
+            wide_share: self.wide_share,
             rng: ChaCha8Rng::seed_from_u64(0),
             actions: vec![0; n_agents],
         })
@@ -409,7 +419,7 @@ impl MarlEnv for MetaEnv {
     fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let n_agents = self.hier.n_agents();
-        let instance = self.pool.sample(n_agents, &mut rng);
+        let instance = self.pool.sample_episode(n_agents, self.wide_share, &mut rng);
         let multiple = self.weight.draw_multiple(&mut rng);
         let w_f = multiple * self.weight.base_for(n_agents);
         self.hier.reset_to(&instance, w_f, multiple, obs).expect("pool instances fit");

@@ -128,6 +128,10 @@ pub struct MetaSettings {
     /// Whether the meta observation ends with the vector towards the agent's place in the
     /// goal layout placed on the front agent (`phalanx_env::MetaInputs::place`; default no).
     pub place_input: bool,
+    /// Share of the training episodes whose team starts in a formation drawn from
+    /// `phalanx_env::WIDE_SIDE` cells a side, as wide as Table II's large maps' (the pool's
+    /// are half as wide; `TrainPool::sample_wide`); default 0.
+    pub wide_share: f64,
 }
 
 impl Default for MetaSettings {
@@ -139,6 +143,7 @@ impl Default for MetaSettings {
             multiples: Multiples::Conditioned { min: 0.01, max: 3.0, p_zero: 0.1 },
             estimate: WeightConfig::default(),
             place_input: false,
+            wide_share: 0.0,
         }
     }
 }
@@ -308,6 +313,10 @@ impl TrainConfig {
             }
             _ => {}
         }
+        let wide = self.meta.wide_share;
+        if !(0.0..=1.0).contains(&wide) {
+            return invalid(format!("meta.wide_share {wide} must be between 0 and 1"));
+        }
         if let Some(base) = &self.meta.base_weight {
             if base.is_empty() {
                 return invalid("meta.base_weight must name at least one team size".into());
@@ -406,7 +415,8 @@ impl TrainConfig {
             self.env.clone(),
             self.agent_counts[0],
             self.reward_scale_for(TrainTask::Meta),
-        )?;
+        )?
+        .with_wide_share(self.meta.wide_share);
         self.collector_of(&first, MetaEnv::with_agents)
     }
 

@@ -333,6 +333,13 @@ fn train_bad_config_exits_2_naming_the_file() {
     std::fs::write(d.join("many.json"), r#"{"agent_counts": [3, 9]}"#).unwrap();
     let (_, stderr) = check(&phalanx(d, &["train", "formation", "--config", "many.json"]), 2);
     assert!(stderr.contains("agent count 9"), "{stderr}");
+    std::fs::write(d.join("share.json"), r#"{"meta": {"wide_share": 1.5}}"#).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["train", "meta", "--config", "share.json"]), 2);
+    assert!(stderr.contains("share.json") && stderr.contains("wide_share 1.5"), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["train", "formation", "--wide-share", "0.5"]), 2);
+    assert!(stderr.contains("--wide-share"), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["train", "meta", "--wide-share", "NaN"]), 2);
+    assert!(stderr.contains("NaN"), "{stderr}");
     let (_, stderr) = check(&phalanx(d, &["train", "pathfinding", "--resume"]), 2);
     assert!(stderr.contains("checkpoint"), "{stderr}");
     assert!(!d.join("run").exists(), "nothing written on bad input");

@@ -2,7 +2,7 @@
 
 use phalanx_core::formation_loss;
 use phalanx_env::{
-    Env, EnvConfig, EvalMaps, GenConfig, PoolConfig, Task, TrainPool, eval_seed,
+    Env, EnvConfig, EvalMaps, GenConfig, PoolConfig, Task, TrainPool, WIDE_SIDE, eval_seed,
     formation_instance, train_seed,
 };
 use rand::SeedableRng;
@@ -35,6 +35,43 @@ fn paper_pool_is_deterministic_and_dense_enough() {
         let inst = pool.sample(5, &mut rng);
         assert_eq!(formation_loss(inst.starts(), inst.goals()), 0.0);
     }
+}
+
+#[test]
+fn a_share_of_the_episodes_start_in_wide_formations() {
+    let pool = TrainPool::new(&PoolConfig { n_maps: 10, ..PoolConfig::default() }).unwrap();
+    // A share of 0 draws exactly what `sample` draws, and leaves the stream where it does.
+    let (mut a, mut b) = (ChaCha8Rng::seed_from_u64(3), ChaCha8Rng::seed_from_u64(3));
+    for _ in 0..20 {
+        assert_eq!(pool.sample_episode(4, 0.0, &mut a), pool.sample(4, &mut b));
+    }
+    assert_eq!(a, b);
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let mut wide = 0;
+    for _ in 0..40 {
+        let inst = pool.sample_episode(4, 1.0, &mut rng);
+        let (starts, goals) = (inst.starts(), inst.goals());
+        assert_eq!(formation_loss(starts, goals), 0.0, "the goals translate the starts");
+        // Wide: drawn from the top-left square, translated into the bottom-right one; else
+        // (no free draw) the pool's own regions of 5 cells a side.
+        let side = starts.iter().map(|c| c.x.max(c.y)).max().unwrap() + 1;
+        let shift = goals[0].x - starts[0].x;
+        assert!(starts.iter().zip(goals).all(|(s, g)| g.x - s.x == shift && g.y - s.y == shift));
+        if shift == 32 - WIDE_SIDE as i32 {
+            assert!(side <= WIDE_SIDE as i32, "{starts:?}");
+            wide += usize::from(side > 5);
+        } else {
+            assert_eq!(shift, 32 - 5, "the pool's own: {starts:?}");
+            assert!(side <= 5, "{starts:?}");
+        }
+    }
+    assert!(wide >= 30, "{wide} of 40 teams wider than the pool's 5 cells");
+    // Maps no wider than the square have no wide episodes: the pool's own are drawn.
+    let small = TrainPool::new(&PoolConfig { n_maps: 2, size: 10, ..PoolConfig::default() });
+    let small = small.unwrap();
+    assert!(small.sample_wide(3, &mut rng).is_none());
+    let inst = small.sample_episode(3, 1.0, &mut rng);
+    assert!(inst.starts().iter().all(|c| c.x.max(c.y) < 5));
 }
 
 #[test]
