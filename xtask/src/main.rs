@@ -1,7 +1,8 @@
 //! `cargo xtask`: the project's automation in Rust (no shell scripts).
 //!
 //! - `cargo xtask tidy`: every `.rs` file starts with a `//!` paragraph, no trailing
-//!   whitespace, no `#[should_panic]`, no `#[ignore]`.
+//!   whitespace, no `#[should_panic]`, no `#[ignore]`; no crate's modules import each other
+//!   in a cycle, and phalanx-rl's inference modules import no training module.
 //! - `cargo xtask deps`: the dependency invariants of ARCHITECTURE.md (no burn below the
 //!   learning crates; the benchmark uses them without naming burn; pyo3 in the Python
 //!   package only, zenoh in the transport crate only).

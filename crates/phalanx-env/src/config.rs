@@ -5,6 +5,13 @@ use phalanx_gen::GenError;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+/// Most agents in one episode: two `u16` values are reserved in the occupancy grid.
+pub const MAX_AGENTS: usize = u16::MAX as usize - 1;
+
+/// The largest footprint penalty: costs stay far below `u32`'s sentinels on a 4096² map, and
+/// the search's ring of buckets (`λ + 2`) stays short.
+pub const MAX_FOOTPRINT_PENALTY: u32 = 100;
+
 /// Which reward of docs/spec.md §5 (the paper's Table I) the environment pays, which action mask it
 /// writes and when an episode is terminated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -138,10 +145,10 @@ pub enum EnvError {
     #[error("field of view {0} must be odd and at least 3")]
     Fov(u32),
     /// The footprint penalty is above its largest value.
-    #[error("footprint penalty {0} is above the largest, {max}", max = crate::MAX_FOOTPRINT_PENALTY)]
+    #[error("footprint penalty {0} is above the largest, {max}", max = MAX_FOOTPRINT_PENALTY)]
     FootprintPenalty(u32),
     /// The instance has more agents than the occupancy grid can name.
-    #[error("too many agents: {0} (at most {max})", max = crate::MAX_AGENTS)]
+    #[error("too many agents: {0} (at most {max})", max = MAX_AGENTS)]
     TooManyAgents(usize),
     /// A batch mixes instances with different numbers of agents.
     #[error("the batch has {expected} agents per episode but the instance has {found}")]

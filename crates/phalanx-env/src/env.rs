@@ -11,17 +11,13 @@ use phalanx_core::{Action, Cell, Grid, Instance, formation_loss};
 use phalanx_gen::GenConfig;
 use rayon::prelude::*;
 
-use crate::marl::{ObsBuffers, ObsShape};
+use crate::config::{MAX_AGENTS, MAX_FOOTPRINT_PENALTY};
+use crate::marl::{ObsBuffers, ObsShape, StepOut};
 use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, VECTOR_LEN};
 use crate::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
 
 mod footprint;
 mod frame;
-
-pub use footprint::MAX_FOOTPRINT_PENALTY;
-
-/// Most agents in one episode: two `u16` values are reserved in the occupancy grid.
-pub const MAX_AGENTS: usize = u16::MAX as usize - 1;
 
 /// Padded cells from which the agents' BFS maps are computed in parallel on reset.
 const PARALLEL_BFS_CELLS: usize = 1 << 16;
@@ -459,6 +455,27 @@ impl Env {
         let (dx, dy) = (f64::from(g.x - p.x), f64::from(g.y - p.y));
         let norm = (dx * dx + dy * dy).sqrt();
         if norm == 0.0 { [0.0; 3] } else { [dx / norm, dy / norm, norm] }
+    }
+
+    /// Steps with the joint action `actions` (action indices; `scratch` holds one [`Action`]
+    /// per agent) and returns the step's team reward, end flags and cancelled moves: the step
+    /// of the environments that train on this one.
+    ///
+    /// # Panics
+    /// If the lengths differ from the agent count, an index is above 4 or the episode has ended.
+    pub(crate) fn step_indices(&mut self, actions: &[u8], scratch: &mut [Action]) -> StepOut {
+        assert_eq!(actions.len(), scratch.len(), "one action per agent");
+        for (slot, &action) in scratch.iter_mut().zip(actions) {
+            *slot = Action::from_index(usize::from(action)).expect("action index below 5");
+        }
+        let step = self.step(scratch);
+        StepOut {
+            team_reward: step.team_reward,
+            terminated: step.terminated,
+            truncated: step.truncated,
+            collisions: step.info.n_cancelled,
+            formation_loss: self.formation_loss(),
+        }
     }
 
     /// Advances the episode by one joint action (one per agent, in agent order).

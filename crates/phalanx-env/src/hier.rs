@@ -352,7 +352,7 @@ impl HierEnv {
     /// If there is not one action per agent, an action index is above 4, or the episode has
     /// ended.
     pub fn step(&mut self, actions: &[u8], meta: &mut ObsBuffers) -> StepOut {
-        let out = crate::marl::step_indices(&mut self.env, actions, &mut self.actions);
+        let out = self.env.step_indices(actions, &mut self.actions);
         self.observe(meta);
         out
     }

@@ -41,8 +41,10 @@ mod pool;
 pub mod sim;
 mod task;
 
-pub use config::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
-pub use env::{Env, MAX_AGENTS, MAX_FOOTPRINT_PENALTY, Step, StepInfo};
+pub use config::{
+    Clip, EnvConfig, EnvError, IdleScope, LeaderRule, MAX_AGENTS, MAX_FOOTPRINT_PENALTY, Task,
+};
+pub use env::{Env, Step, StepInfo};
 pub use follow::FollowEnv;
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use hier::{Choice, HierEnv, MetaInputs, clip_claimed};

@@ -128,32 +128,6 @@ pub trait MarlEnv {
     fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut;
 }
 
-/// Steps `env` with the joint action `actions` (action indices; `scratch` holds one
-/// [`phalanx_core::Action`] per agent) and returns the step's team reward, end flags and
-/// cancelled moves.
-///
-/// # Panics
-/// If the lengths differ from the agent count, an index is above 4 or the episode has ended.
-pub(crate) fn step_indices(
-    env: &mut crate::Env,
-    actions: &[u8],
-    scratch: &mut [phalanx_core::Action],
-) -> StepOut {
-    assert_eq!(actions.len(), scratch.len(), "one action per agent");
-    for (slot, &action) in scratch.iter_mut().zip(actions) {
-        *slot =
-            phalanx_core::Action::from_index(usize::from(action)).expect("action index below 5");
-    }
-    let step = env.step(scratch);
-    StepOut {
-        team_reward: step.team_reward,
-        terminated: step.terminated,
-        truncated: step.truncated,
-        collisions: step.info.n_cancelled,
-        formation_loss: env.formation_loss(),
-    }
-}
-
 /// Steps every environment with its slice of `actions` (`[Σ N_e]`, environment after
 /// environment, agent order within one; `offsets[e]` is where environment `e`'s agents
 /// start) and writes its observation into `obs[e]` and its outcome into `outs[e]`.

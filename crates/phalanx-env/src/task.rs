@@ -103,7 +103,7 @@ impl TaskEnv {
 
     /// Apply the joint action and write the next observation.
     pub fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
-        let out = crate::marl::step_indices(&mut self.env, actions, &mut self.actions);
+        let out = self.env.step_indices(actions, &mut self.actions);
         self.observe(obs);
         out
     }

@@ -18,10 +18,11 @@ use std::fmt::Write as _;
 
 use phalanx_core::Instance;
 
+use crate::num;
 use crate::scene::{
     FOLLOW_MARGIN, Layout, Options, Window, cell_px, check_options, following, follows, whole,
 };
-use crate::svg::{self, Edges, Mode, Track, Writer, num};
+use crate::svg::{self, Edges, Mode, Track, Writer};
 use crate::{Format, GIF_MAX_FRAMES, RenderError, font, raster};
 
 /// A car's pose: the centre of its body in metres (`x` along the grid's columns, `y` along

@@ -117,9 +117,9 @@ pub(crate) fn line(out: &mut String, text: &str, pen: &Pen<'_>) {
     let _ = write!(
         out,
         "<g fill=\"{fill}\" transform=\"translate({} {}) scale({})\">",
-        crate::svg::num(x),
-        crate::svg::num(y),
-        crate::svg::num(scale)
+        crate::num(x),
+        crate::num(y),
+        crate::num(scale)
     );
     for (i, c) in text.chars().enumerate() {
         let c = glyph_char(c);

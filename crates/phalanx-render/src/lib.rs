@@ -46,6 +46,14 @@ pub use scene::{Crop, Options, Scene};
 
 use scene::Layout;
 
+/// A number as every document writes it: at most two decimals, trailing zeros cut, no `-0`
+/// (kept at the root, below the writers that share it).
+pub(crate) fn num(v: f64) -> String {
+    let s = format!("{v:.2}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" || s.is_empty() { "0".to_owned() } else { s.to_owned() }
+}
+
 /// Why a picture cannot be drawn.
 #[derive(Debug, Error, PartialEq)]
 pub enum RenderError {

@@ -10,15 +10,8 @@ use std::fmt::Write as _;
 
 use phalanx_core::{Cell, Grid};
 
-use crate::font;
 use crate::scene::{Layout, Options, Scene};
-
-/// A number with at most two decimals, trailing zeros cut, no `-0`.
-pub(crate) fn num(v: f64) -> String {
-    let s = format!("{v:.2}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" || s.is_empty() { "0".to_owned() } else { s.to_owned() }
-}
+use crate::{font, num};
 
 /// Agent colours, in agent order (repeated past ten agents).
 const AGENT_COLOURS: [&str; 10] = [

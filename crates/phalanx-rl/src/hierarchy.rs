@@ -243,19 +243,8 @@ pub struct PolicyRef {
     /// The path it was read from.
     pub file: String,
     /// CRC-32 of its network's weights as stored
-    /// ([`crate::policy_file::network_checksum`]), in hexadecimal.
+    /// (`policy_file::network_checksum`; [`PolicyRef::of`] reads it), in hexadecimal.
     pub crc32: String,
-}
-
-impl PolicyRef {
-    /// The reference of the policy in the file at `path`.
-    ///
-    /// # Errors
-    /// If the file cannot be read.
-    pub fn of(path: &std::path::Path) -> Result<PolicyRef, crate::CheckpointError> {
-        let crc = crate::policy_file::network_checksum(path)?;
-        Ok(PolicyRef { file: path.display().to_string(), crc32: format!("{crc:08x}") })
-    }
 }
 
 /// The meta reward's formation weight: `multiple × base(k)` per agent for teams of `k`.

@@ -65,7 +65,7 @@ pub use net::{EncoderConfig, NetConfigError, QNet, QNetConfig, RecurrentState};
 pub use policy::{Policy, RecurrentStateError};
 pub use policy_file::CheckpointError;
 pub use replay::{Batch, Episode, Replay, ReplayError, SequenceMode};
-pub use resume::CollectionError;
+pub use resume::{CollectionError, ResumeError};
 pub use settings::{MetaSettings, SettingsError, TrainConfig, TrainTask};
 pub use train::{Collector, MetricSink, metrics};
 pub use weight::{WeightConfig, WeightEstimate, estimate_weight};

@@ -22,7 +22,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::hierarchy::MetaInfo;
+use crate::hierarchy::{MetaInfo, PolicyRef};
 use crate::hyper::{Counters, LearnerConfig};
 use crate::net::{QNet, QNetConfig, to_vec};
 use crate::policy::Policy;
@@ -94,14 +94,6 @@ pub enum CheckpointError {
         /// `online` or `target`.
         section: &'static str,
     },
-    /// The collection state cannot be saved, or does not fit the resuming run.
-    #[error("checkpoint {path}: collection state: {source}")]
-    Collection {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: crate::resume::CollectionError,
-    },
     /// A tensor record does not fit the network (wrong shapes or missing parameters).
     #[error("checkpoint {path}, section {section}: {message}")]
     Record {
@@ -170,6 +162,17 @@ pub fn load_policy_any(path: &Path, device: &Device) -> Result<(Policy, Header),
 /// the same whichever layout holds them): what a meta policy records of its low level.
 pub fn network_checksum(path: &Path) -> Result<u32, CheckpointError> {
     Ok(crc32fast::hash(&read_file(path)?.online))
+}
+
+impl PolicyRef {
+    /// The reference of the policy in the file at `path`.
+    ///
+    /// # Errors
+    /// If the file cannot be read.
+    pub fn of(path: &Path) -> Result<PolicyRef, CheckpointError> {
+        let crc = network_checksum(path)?;
+        Ok(PolicyRef { file: path.display().to_string(), crc32: format!("{crc:08x}") })
+    }
 }
 
 /// Read a checkpoint's header only.

@@ -5,7 +5,7 @@
 //! recurrent state: about 19 bytes per step, against about 1.3 KB per agent and step of
 //! observations (`docs/learning.md`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
@@ -43,6 +43,22 @@ pub(crate) struct Collection {
 struct EpisodeLog {
     seed: u64,
     actions: String,
+}
+
+/// Errors saving or restoring a checkpoint with its collection state.
+#[derive(Debug, thiserror::Error)]
+pub enum ResumeError {
+    /// Reading or writing the checkpoint itself.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    /// The collection state cannot be saved, or does not fit the resuming run.
+    #[error("checkpoint {path}: collection state: {source}")]
+    Collection {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: CollectionError,
+    },
 }
 
 /// Why a collection state cannot be saved, or does not fit the run that resumes it.
@@ -210,11 +226,11 @@ impl Learner {
         &self,
         path: &Path,
         collector: &Collector<E>,
-    ) -> Result<(), CheckpointError> {
+    ) -> Result<(), ResumeError> {
         let state = Collection::of(self, collector)
-            .map_err(|source| CheckpointError::Collection { path: path.to_path_buf(), source })?;
+            .map_err(|source| ResumeError::Collection { path: path.to_path_buf(), source })?;
         let json = serde_json::to_vec(&state).expect("the collection state serialises");
-        self.write_checkpoint(path, Some(&json))
+        Ok(self.write_checkpoint(path, Some(&json))?)
     }
 
     /// Restore the collection state saved in the checkpoint `path` (this learner's, loaded with
@@ -230,10 +246,11 @@ impl Learner {
         &mut self,
         path: &Path,
         collector: &mut Collector<E>,
-    ) -> Result<bool, CheckpointError> {
+    ) -> Result<bool, ResumeError> {
         let (header, state) = crate::checkpoint::read_collection(path)?;
-        let malformed =
-            |reason: String| CheckpointError::Malformed { path: path.to_path_buf(), reason };
+        let malformed = |reason: String| {
+            ResumeError::Checkpoint(CheckpointError::Malformed { path: path.to_path_buf(), reason })
+        };
         let Some(state) = state else { return Ok(false) };
         if header.counters != self.counters {
             return Err(malformed(format!(
@@ -245,7 +262,7 @@ impl Learner {
             .map_err(|err| malformed(format!("collection state: {err}")))?;
         state
             .restore(self, collector)
-            .map_err(|source| CheckpointError::Collection { path: path.to_path_buf(), source })?;
+            .map_err(|source| ResumeError::Collection { path: path.to_path_buf(), source })?;
         Ok(true)
     }
 }

@@ -21,10 +21,6 @@ use super::BLOCKED;
 #[cfg(test)]
 use super::UNREACHABLE;
 
-/// The largest footprint penalty: costs stay far below `u32`'s sentinels on a 4096² map, and
-/// the search's ring of buckets (`λ + 2`) stays short.
-pub const MAX_FOOTPRINT_PENALTY: u32 = 100;
-
 /// Writes agent `agent`'s team cost map into `dist` (padded layout, width `pw`, padding
 /// `pad`, `width × height` cells inside): `dist` must hold `BLOCKED` on blocked cells and
 /// `UNREACHABLE` on free ones on entry. `penalty` is per cell of `flags` (reused scratch),

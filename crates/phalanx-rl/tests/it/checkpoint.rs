@@ -5,7 +5,7 @@ use std::path::Path;
 use burn::tensor::Device;
 use phalanx_env::ObsBuffers;
 use phalanx_rl::policy_file::{load_policy, load_policy_any, read_header};
-use phalanx_rl::{CheckpointError, Collector, Learner, Policy, QNetConfig};
+use phalanx_rl::{CheckpointError, Collector, Learner, Policy, QNetConfig, ResumeError};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -256,7 +256,7 @@ fn a_resumed_run_continues_exactly() {
     assert!(
         matches!(
             err,
-            CheckpointError::Collection { source: phalanx_rl::CollectionError::Teams { .. }, .. }
+            ResumeError::Collection { source: phalanx_rl::CollectionError::Teams { .. }, .. }
         ),
         "{err}"
     );
