@@ -1,6 +1,6 @@
 //! Network cost: one learner update (batch 32 × 16 steps × 3 agents), one agent's decision
 //! (one recurrent step plus the head, batch 1) for the default and the paper network, and one
-//! agent's decision in the hierarchy (meta network plus the low level).
+//! agent's decision in the shipped hierarchy (meta network plus the low level).
 //!
 //! Run on one core: `RAYON_NUM_THREADS=1 cargo bench -p phalanx-rl --bench net`.
 
@@ -8,13 +8,12 @@ use std::hint::black_box;
 
 use burn::tensor::Device;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use phalanx_env::{EnvConfig, HierEnv, MetaInputs, ObsBuffers};
+use phalanx_env::{EnvConfig, HierEnv, ObsBuffers};
 use phalanx_gen::GenConfig;
 use phalanx_rl::learner::obs_shape;
+use phalanx_rl::models::load_hierarchy;
 use phalanx_rl::policy_file::load_policy_any;
-use phalanx_rl::{
-    Episode, Learner, LearnerConfig, LowLevel, Policy, QNetConfig, Replay, SequenceMode,
-};
+use phalanx_rl::{Episode, Learner, LearnerConfig, Policy, QNetConfig, Replay, SequenceMode};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -129,38 +128,29 @@ fn decision(c: &mut Criterion) {
     group.finish();
 }
 
-/// One agent's decision in the hierarchy: the meta network, then the low level (both shipped
-/// recurrent passes, the formation frame, the chosen head), state carried; per agent of a team
-/// of one, and per call for a team of 3.
+/// One agent's decision in the hierarchy: the shipped meta policy (`models/meta`), then the
+/// low level (both shipped recurrent passes, the formation frame, the chosen head), state
+/// carried; per agent of a team of one, and per call for a team of 3.
 fn hierarchy_decision(c: &mut Criterion) {
-    let device = Device::flex();
-    let load = |name: &str| {
-        let path = format!("{}/../../models/{name}/policy.bin", env!("CARGO_MANIFEST_DIR"));
-        load_policy_any(path.as_ref(), &device).expect(&path).0
-    };
-    let mut low = LowLevel::new(load("pathfinding"), load("formation")).unwrap();
-    let meta_config = QNetConfig { n_actions: 2, env_vec: 4, ..QNetConfig::default() };
-    let net = meta_config.init(&mut ChaCha8Rng::seed_from_u64(5), &device);
-    let mut meta = Policy::new(&net, meta_config);
+    let shipped = format!("{}/../../models/meta", env!("CARGO_MANIFEST_DIR"));
+    let mut hierarchy = load_hierarchy(Some(shipped.as_ref()), 1.0).expect(&shipped);
+    let env = hierarchy.low.env_config(&EnvConfig::default());
     let mut group = c.benchmark_group("hierarchy_decision");
     for agents in [1, 3] {
         let config = GenConfig { size: 32, density: 0.15, n_agents: agents, seed: 3, fov: 9 };
         let instance = phalanx_gen::generate(&config).unwrap();
-        let mut envs = vec![
-            HierEnv::new(EnvConfig::default(), agents, MetaInputs { weight: true, place: false })
-                .unwrap(),
-        ];
+        let mut envs = vec![HierEnv::new(env.clone(), agents, hierarchy.meta_inputs()).unwrap()];
         let mut obs = vec![ObsBuffers::new(agents, envs[0].meta_shape())];
-        envs[0].reset_to(&instance, 1.0, 1.0, &mut obs[0]).unwrap();
+        let w_f = hierarchy.formation_weight(agents);
+        envs[0].reset_to(&instance, w_f, hierarchy.multiple, &mut obs[0]).unwrap();
         let (mut choices, mut actions) = (vec![0_u8; agents], vec![0_u8; agents]);
         let mut rng = ChaCha8Rng::seed_from_u64(6);
-        meta.reset();
-        low.reset();
+        hierarchy.reset();
         group.bench_function(BenchmarkId::new("meta+low", agents), |b| {
             b.iter(|| {
-                meta.act_batch(&obs, 0.0, &mut rng, &mut choices, None);
+                hierarchy.choose(&envs, &obs, &mut rng, &mut choices);
                 envs[0].set_choices(&choices);
-                low.act_batch(&mut envs, &choices, 0.0, &mut rng, &mut actions);
+                hierarchy.low.act_batch(&mut envs, &choices, 0.0, &mut rng, &mut actions);
                 black_box(actions[0])
             })
         });
