@@ -67,12 +67,13 @@ pub fn module_problems(root: &Path) -> std::io::Result<Vec<String>> {
                     "{shown}/{module}: neither an inference nor a training module (xtask/src/modules.rs)"
                 ));
             }
+            if !inference {
+                continue;
+            }
             for import in imports.iter().filter(|i| modules::RL_TRAINING.contains(&i.as_str())) {
-                if inference {
-                    problems.push(format!(
-                        "{shown}/{module}: an inference module imports the training module {import}"
-                    ));
-                }
+                problems.push(format!(
+                    "{shown}/{module}: an inference module imports the training module {import}"
+                ));
             }
         }
     }
