@@ -32,9 +32,6 @@ pub(crate) struct AgentCmd {
     /// models/pathfinding or models/meta).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
-    /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
-    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
-    multiple: f64,
     /// The world's Zenoh endpoint.
     #[arg(long, default_value = DEFAULT_WORLD_ENDPOINT, value_name = "ENDPOINT")]
     connect: String,
@@ -54,9 +51,8 @@ pub(crate) struct AgentCmd {
 
 /// Runs `phalanx agent`.
 pub(crate) fn run(cmd: AgentCmd) -> anyhow::Result<ExitCode> {
-    let team =
-        Team::load(cmd.policy, cmd.weights.as_deref(), cmd.multiple, usize::from(cmd.id) + 1)
-            .with_context(|| format!("agent {}", cmd.id))?;
+    let team = Team::load(cmd.policy, cmd.weights.as_deref(), usize::from(cmd.id) + 1)
+        .with_context(|| format!("agent {}", cmd.id))?;
     let mut endpoints = Endpoints::agent(&cmd.listen, &cmd.connect);
     endpoints.prefix = cmd.prefix.clone();
     let mut transport = ZenohTransport::open(Role::Agent(cmd.id), &endpoints)

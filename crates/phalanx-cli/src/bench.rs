@@ -81,7 +81,7 @@ pub(crate) struct MovingAiArgs {
     #[arg(long, value_delimiter = ',', default_value = "test-data/movingai")]
     maps_from: Vec<PathBuf>,
     /// Agents per team.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = phalanx_gen::DEFAULT_AGENTS)]
     agents: usize,
 }
 
@@ -97,7 +97,7 @@ pub(crate) struct ScalingArgs {
     #[arg(long, value_delimiter = ',', default_value = "3,5,8")]
     agents: Vec<usize>,
     /// Obstacle density.
-    #[arg(long, default_value_t = 0.15, value_parser = util::fraction)]
+    #[arg(long, default_value_t = phalanx_gen::DEFAULT_DENSITY, value_parser = util::fraction)]
     density: f64,
     /// Random single-cell obstacles and random starts and goals (classic MAPF, no
     /// formation) instead of the paper's generator.
@@ -241,7 +241,6 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
                 Hierarchies::Front(front.multiples())
             } else {
                 match &meta_file {
-                    Some(file) if conditioned(file)? => Hierarchies::Conditioned,
                     Some(_) => Hierarchies::One,
                     None => Hierarchies::None,
                 }
@@ -405,21 +404,12 @@ pub(crate) fn meta_file(dir: Option<&Path>) -> anyhow::Result<Option<PathBuf>> {
     })
 }
 
-/// Whether the meta policy in `file` reads the weight multiple (serves any `hrl:M`).
-fn conditioned(file: &Path) -> anyhow::Result<bool> {
-    let header = phalanx_rl::policy_file::read_header(file)
-        .with_context(|| format!("reading the meta policy {}", file.display()))?;
-    Ok(header.meta.is_some_and(|info| info.weight.conditioned()))
-}
-
 /// Which meta policies the default methods draw on.
 enum Hierarchies {
     /// None found.
     None,
     /// One at a fixed multiple: `hrl`.
     One,
-    /// A weight-conditioned one: `hrl:0` … `hrl:3` on the Pareto benchmark.
-    Conditioned,
     /// A front of fixed-multiple ones: `hrl:M` for each of these multiples.
     Front(Vec<f64>),
 }
@@ -443,13 +433,10 @@ fn default_methods(benchmark: &str, hierarchy: &Hierarchies) -> Vec<String> {
         Hierarchies::None => {
             util::warn("no meta policy found (models/meta or --meta): the hierarchy is left out");
         }
-        Hierarchies::Conditioned if benchmark == "pareto" => {
-            names.extend(["hrl:0", "hrl:1", "hrl:2", "hrl:3"].map(str::to_owned));
-        }
         Hierarchies::Front(multiples) => {
             names.extend(multiples.iter().map(|m| format!("hrl:{m}")));
         }
-        Hierarchies::One | Hierarchies::Conditioned => names.push("hrl".to_owned()),
+        Hierarchies::One => names.push("hrl".to_owned()),
     }
     names
 }

@@ -103,10 +103,6 @@ pub(crate) struct EvalCmd {
     /// Which rollout counts, a solved one always first.
     #[arg(long, value_enum, default_value_t = meta::KeepArg::Fastest)]
     keep: meta::KeepArg,
-    /// hrl: the multiple of the base formation weight w_f a weight-conditioned meta policy
-    /// runs at.
-    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
-    multiple: f64,
     #[command(flatten)]
     leader: meta::LeaderArgs,
     /// hrl, leader: the path-finding policy's directory or file (default: the one the meta
@@ -193,7 +189,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     });
     anyhow::ensure!(max_steps > 0, "--max-steps must be positive");
     anyhow::ensure!(cmd.maps > 0, "--maps 0: there is nothing to evaluate");
-    let env = EnvConfig { fov, task, step_limit: Some(max_steps), ..EnvConfig::default() };
+    let env = EnvConfig { step_limit: Some(max_steps), ..policy.env_config(task) };
     let instances = instances(&cmd, task, fov)?;
 
     let bar = ProgressBar::new(instances.len() as u64);
@@ -218,8 +214,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
         bar.set_position(done as u64);
     };
     let episodes = if scripted {
-        let low = models::low_level_of(policy, cmd.formation_weights.as_deref())?
-            .with_footprint_penalty(cmd.leader.footprint_penalty());
+        let low = models::low_level_of(policy, cmd.formation_weights.as_deref())?;
         let mut hierarchy = Hierarchy::scripted(rule, low);
         evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
     } else if cmd.policy == PolicyName::Hrl {
@@ -229,7 +224,6 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
             &file,
             cmd.pathfinding_weights.as_deref(),
             cmd.formation_weights.as_deref(),
-            cmd.multiple,
         )?;
         evaluate_hierarchy(&mut hierarchy, &env, &instances, BATCH, rollouts, &mut progress)
     } else {

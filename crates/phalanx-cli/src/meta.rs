@@ -21,16 +21,9 @@ pub(crate) fn low_level(
 ) -> anyhow::Result<(LowLevel, MetaInfo)> {
     let (pathfinding, pf_ref) = models::load(config.meta.pathfinding.as_deref(), "pathfinding")?;
     let (mut formation, fm_ref) = models::load(config.meta.formation.as_deref(), "formation")?;
-    let footprint_penalty = config.env.footprint_penalty;
     let place_input = config.meta.place_input;
     if let Some(saved) = learner.meta() {
         models::check_low_level(saved, &pf_ref, &fm_ref, "the checkpoint's meta policy")?;
-        anyhow::ensure!(
-            saved.footprint_penalty == footprint_penalty,
-            "the checkpoint's meta policy was trained with env.footprint_penalty {:?}, the \
-             settings have {footprint_penalty:?}",
-            saved.footprint_penalty
-        );
         anyhow::ensure!(
             saved.place_input == place_input,
             "the checkpoint's meta policy was trained with meta.place_input {}, the settings \
@@ -41,11 +34,8 @@ pub(crate) fn low_level(
     let saved = learner.meta().map(|saved| saved.weight.base.as_slice());
     let base = base_weights(config, saved, &mut formation)?;
     let weight = FormationWeight { base, multiples: config.meta.multiples };
-    let low = LowLevel::new(pathfinding, formation)
-        .context("the low-level policies")?
-        .with_footprint_penalty(footprint_penalty);
-    let info =
-        MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref, footprint_penalty, place_input };
+    let low = LowLevel::new(pathfinding, formation).context("the low-level policies")?;
+    let info = MetaInfo { weight, pathfinding: pf_ref, formation: fm_ref, place_input };
     Ok((low, info))
 }
 
@@ -82,11 +72,6 @@ pub(crate) struct LeaderArgs {
     /// leader: the longest run of closing-up steps before the leader moves on for a step.
     #[arg(long, default_value_t = 8)]
     patience: u32,
-    /// leader: the footprint penalty of the path-finding cost channel (a team cost map that
-    /// leads the front agent where the team fits; default none, the BFS distance). A meta
-    /// policy runs with the penalty it was trained with.
-    #[arg(long, value_name = "L", value_parser = clap::value_parser!(u32).range(0..=phalanx_env::MAX_FOOTPRINT_PENALTY as i64))]
-    footprint_penalty: Option<u32>,
 }
 
 impl LeaderArgs {
@@ -94,15 +79,10 @@ impl LeaderArgs {
     /// refused otherwise).
     pub(crate) fn rule(&self, scripted: bool) -> anyhow::Result<ScriptedMeta> {
         anyhow::ensure!(
-            scripted || (self.wait_above.is_none() && self.footprint_penalty.is_none()),
-            "--wait-above and --footprint-penalty are flags of the leader rule only"
+            scripted || self.wait_above.is_none(),
+            "--wait-above is a flag of the leader rule only"
         );
         Ok(ScriptedMeta::new(self.wait_above, self.patience))
-    }
-
-    /// The leader rule's footprint penalty.
-    pub(crate) fn footprint_penalty(&self) -> Option<u32> {
-        self.footprint_penalty
     }
 }
 

@@ -53,17 +53,16 @@ pub(crate) enum Team {
 
 impl Team {
     /// The policy `policy` of `weights` (the meta policy's, for the hierarchy; default: the
-    /// shipped one), run at `multiple` × w_f for the hierarchy, for a team of `n` agents.
+    /// shipped one), for a team of `n` agents.
     pub(crate) fn load(
         policy: TeamPolicy,
         weights: Option<&Path>,
-        multiple: f64,
         n: usize,
     ) -> anyhow::Result<Team> {
         match policy {
             TeamPolicy::Pathfinding => Ok(Team::PathFinding(Box::new(policy_for(weights, n)?))),
             TeamPolicy::Hrl => {
-                let hierarchy = models::load_hierarchy(weights, multiple)
+                let hierarchy = models::load_hierarchy(weights)
                     .context("loading the hierarchy (the meta policy and its low level)")?;
                 let slots = hierarchy.n_agents_max();
                 anyhow::ensure!(
@@ -75,19 +74,11 @@ impl Team {
         }
     }
 
-    /// The footprint penalty of its path-finding cost channel (the hierarchy's).
-    pub(crate) fn footprint_penalty(&self) -> Option<u32> {
-        match self {
-            Team::PathFinding(_) => None,
-            Team::Hierarchy(hierarchy) => hierarchy.low.footprint_penalty(),
-        }
-    }
-
     /// The field of view its policies read.
     pub(crate) fn fov(&self) -> u32 {
         match self {
             Team::PathFinding(policy) => policy.config().fov as u32,
-            Team::Hierarchy(hierarchy) => hierarchy.low.fov() as u32,
+            Team::Hierarchy(hierarchy) => hierarchy.fov() as u32,
         }
     }
 
@@ -135,9 +126,6 @@ pub(crate) struct RunCmd {
     /// models/pathfinding or models/meta).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
-    /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
-    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
-    multiple: f64,
     /// How long the world waits for an action before the first agent not in waits this
     /// step, milliseconds.
     #[arg(long, default_value_t = 2000, value_name = "MS")]
@@ -171,19 +159,17 @@ pub(crate) fn policy_for(weights: Option<&Path>, n: usize) -> anyhow::Result<Pol
     Ok(policy)
 }
 
-/// The world of `instance` for a team of `policy` of field of view `fov` (and for the
-/// hierarchy the path-finding cost channel's `footprint_penalty`), with the step limit of
-/// docs/spec.md §4 (three times the map side).
+/// The world of `instance` for a team of `policy` of field of view `fov`, with the step
+/// limit of docs/spec.md §4 (three times the map side).
 pub(crate) fn world_for(
     named: &NamedInstance,
     path: &Path,
     policy: TeamPolicy,
     fov: u32,
-    footprint_penalty: Option<u32>,
 ) -> anyhow::Result<World> {
     let instance = &named.instance;
     let step_limit = Some(3 * instance.grid().side());
-    let config = EnvConfig { fov, step_limit, footprint_penalty, ..EnvConfig::default() };
+    let config = EnvConfig { fov, step_limit, ..EnvConfig::default() };
     match policy {
         TeamPolicy::Pathfinding => World::new(instance, config, 0),
         TeamPolicy::Hrl => World::hierarchy(instance, config, 0),
@@ -250,12 +236,11 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let n = named.instance.n_agents();
-    let team = Team::load(cmd.policy, cmd.weights.as_deref(), cmd.multiple, n)?;
+    let team = Team::load(cmd.policy, cmd.weights.as_deref(), n)?;
     if cmd.processes {
         return processes(&cmd, n, &team);
     }
-    let footprint = team.footprint_penalty();
-    let mut world = world_for(&named, &cmd.instance, cmd.policy, team.fov(), footprint)?;
+    let mut world = world_for(&named, &cmd.instance, cmd.policy, team.fov())?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();
@@ -298,9 +283,6 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     world.arg("world").arg(&cmd.instance).args(["--listen", &endpoint, "--prefix", &prefix]);
     world.args(["--fov", &fov.to_string(), "--step-timeout", &cmd.step_timeout.to_string()]);
     world.args(["--policy", cmd.policy.name()]);
-    if let Some(penalty) = team.footprint_penalty() {
-        world.args(["--footprint-penalty", &penalty.to_string()]);
-    }
     if let Some(agents) = cmd.agents {
         world.args(["--agents", &agents.to_string()]);
     }
@@ -315,7 +297,7 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     for id in 0..n {
         let mut agent = Command::new(&exe);
         agent.args(["agent", "--id", &id.to_string(), "--connect", &endpoint, "--prefix", &prefix]);
-        agent.args(["--policy", cmd.policy.name(), "--multiple", &cmd.multiple.to_string()]);
+        agent.args(["--policy", cmd.policy.name()]);
         if let Some(weights) = &cmd.weights {
             agent.arg("--weights").arg(weights);
         }

@@ -77,9 +77,6 @@ pub(crate) struct SolveCmd {
     /// shipped models/meta or models/pathfinding).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
-    /// hrl: the multiple of the base formation weight w_f to run the meta policy at.
-    #[arg(long, default_value_t = 1.0, value_parser = util::non_negative)]
-    multiple: f64,
     #[command(flatten)]
     leader: meta::LeaderArgs,
     /// Seed of the rollouts' random actions.
@@ -168,11 +165,10 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let (policy, header) = load_policy_any(&file, &Device::flex())
         .with_context(|| format!("loading the {name} policy"))?;
     let solver = if hrl {
-        let hierarchy = models::hierarchy(policy, &header, &file, None, None, cmd.multiple)?;
+        let hierarchy = models::hierarchy(policy, &header, &file, None, None)?;
         Solver::Hierarchy(Box::new(hierarchy))
     } else if scripted {
-        let low = models::low_level_of(policy, None)?
-            .with_footprint_penalty(cmd.leader.footprint_penalty());
+        let low = models::low_level_of(policy, None)?;
         Solver::Hierarchy(Box::new(phalanx_rl::Hierarchy::scripted(rule, low)))
     } else {
         Solver::PathFinding(Box::new(policy))

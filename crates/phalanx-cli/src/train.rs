@@ -48,10 +48,6 @@ pub(crate) enum TaskName {
     PathFinding,
     /// Formation: reach a random target formation from a random placement.
     Formation,
-    /// The formation policy fine-tuned to follow a scripted leader on its way (the formation
-    /// frame of the hierarchy); starts from the shipped formation policy unless the config's
-    /// init_from names another.
-    Follow,
     /// The meta policy: choose path finding or formation per agent and step, over the frozen
     /// low-level policies, on the meta reward (Table I) weighted by w_f (Eq. 14).
     Meta,
@@ -69,7 +65,6 @@ impl TaskName {
         match self {
             TaskName::PathFinding => TrainTask::PathFinding,
             TaskName::Formation => TrainTask::Formation,
-            TaskName::Follow => TrainTask::Follow,
             TaskName::Meta => TrainTask::Meta,
             TaskName::E2e => TrainTask::EndToEnd,
             TaskName::Ctce => TrainTask::Centralised,
@@ -101,23 +96,19 @@ pub(crate) struct TrainCmd {
     /// overrides the config's `steps`.
     #[arg(long, value_name = "N")]
     steps: Option<u64>,
-    /// Meta, e2e and ctce: train one policy at M times the base weight w_f (not
-    /// weight-conditioned).
+    /// Meta, e2e and ctce: train one policy at M times the base weight w_f (default: meta 0.1,
+    /// e2e and ctce 1).
     #[arg(long, value_name = "M", conflicts_with = "formation_weight", value_parser = util::non_negative)]
     weight_multiple: Option<f64>,
     /// Meta, e2e and ctce: train one policy with the formation weight W for every team size.
     #[arg(long, value_name = "W", value_parser = util::non_negative)]
     formation_weight: Option<f64>,
     /// Meta, e2e and ctce: the idle cost C, lost per agent and step off its goal without
-    /// getting closer (`env.idle_cost`; default 0, Table I's reward).
+    /// getting closer (`env.idle_cost`; default: meta 1.5, e2e and ctce 0, Table I's reward).
     #[arg(long, value_name = "C", value_parser = util::non_negative)]
     idle_cost: Option<f64>,
-    /// Meta: the meta observation ends with the vector towards the agent's place in the goal
-    /// layout placed on the front agent (`meta.place_input`; docs/hierarchy.md).
-    #[arg(long)]
-    place_input: bool,
     /// Meta: the share S of training episodes whose team starts in a formation as wide as
-    /// Table II's large maps' (`meta.wide_share`; default 0).
+    /// Table II's large maps' (`meta.wide_share`; default 0.5).
     #[arg(long, value_name = "S", value_parser = util::fraction)]
     wide_share: Option<f64>,
 }
@@ -153,10 +144,6 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     if let Some(multiple) = cmd.weight_multiple {
         config.meta.multiples = Multiples::Fixed { multiple };
     }
-    if cmd.place_input {
-        anyhow::ensure!(task == TrainTask::Meta, "--place-input is for `phalanx train meta`");
-        config.meta.place_input = true;
-    }
     if let Some(share) = cmd.wide_share {
         anyhow::ensure!(task == TrainTask::Meta, "--wide-share is for `phalanx train meta`");
         config.meta.wide_share = share;
@@ -166,12 +153,8 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         config.meta.base_weight = Some(config.agent_counts.iter().map(|&k| (k, w)).collect());
     }
     if task == TrainTask::Meta {
-        let conditioned = matches!(config.meta.multiples, Multiples::Conditioned { .. });
-        let inputs = MetaInputs { weight: conditioned, place: config.meta.place_input };
+        let inputs = MetaInputs { place: config.meta.place_input };
         config.net.env_vec = inputs.vector_len();
-    }
-    if task == TrainTask::Follow && config.init_from.is_none() && !cmd.resume {
-        config.init_from = Some(models::weights_file(None, "formation")?);
     }
     config.check().map_err(|err| anyhow::anyhow!("{err}"))?;
     let device = Device::flex().autodiff();
@@ -207,12 +190,6 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         learner.set_meta(meta.clone());
         write_config(&saved_config, &config)?;
         let mut collector = config.meta_collector(low, meta.weight.base).with_context(building)?;
-        restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
-        return train(collector, learner, &config, dir, cmd.resume);
-    }
-    if task == TrainTask::Follow {
-        write_config(&saved_config, &config)?;
-        let mut collector = config.follow_collector().with_context(building)?;
         restore(&mut learner, &mut collector, &checkpoint, cmd.resume)?;
         return train(collector, learner, &config, dir, cmd.resume);
     }

@@ -13,10 +13,10 @@ use phalanx_io::NamedInstance;
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct MapArgs {
     /// Map side (8 to 4096).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = phalanx_gen::DEFAULT_SIZE)]
     pub(crate) size: u32,
     /// Fraction of blocked cells (0 to 0.4).
-    #[arg(long, default_value_t = 0.15, value_parser = fraction)]
+    #[arg(long, default_value_t = phalanx_gen::DEFAULT_DENSITY, value_parser = fraction)]
     pub(crate) density: f64,
     /// Agents per instance (default 3; `sim` on an instance file: its first N, default all).
     #[arg(long, value_name = "N")]
@@ -25,14 +25,14 @@ pub(crate) struct MapArgs {
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
     /// Field of view side (odd; walls are at most fov / 2 long).
-    #[arg(long, default_value_t = 9)]
+    #[arg(long, default_value_t = phalanx_gen::DEFAULT_FOV)]
     pub(crate) fov: u32,
 }
 
 impl MapArgs {
     /// Agents per generated instance.
     pub(crate) fn agents(&self) -> usize {
-        self.agents.unwrap_or(3)
+        self.agents.unwrap_or(phalanx_gen::DEFAULT_AGENTS)
     }
 
     /// The generator settings.

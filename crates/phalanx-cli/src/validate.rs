@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use phalanx_core::{PlanMetrics, validate};
+use phalanx_plan::SummaryMetrics;
 use serde_json::json;
 
 use crate::util;
@@ -41,18 +42,12 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
         util::warn(&format!("invalid plan: {violation}"));
         return Ok(ExitCode::from(util::EXIT_INVALID));
     }
-    let m = PlanMetrics::of(inst, &plan);
+    let m = SummaryMetrics::of(&PlanMetrics::of(inst, &plan));
     if args.json {
-        util::print_json(&json!({
-            "valid": true,
-            "success": m.success,
-            "makespan": m.makespan,
-            "sum_of_costs": m.sum_of_costs,
-            "formation_loss": m.formation_loss,
-            "formation_loss_mean": m.formation_loss_mean,
-            "formation_loss_max": m.formation_loss_max,
-            "n_agents": inst.n_agents(),
-        }))?;
+        let mut report = serde_json::to_value(&m).expect("metrics serialise");
+        report["valid"] = json!(true);
+        report["n_agents"] = json!(inst.n_agents());
+        util::print_json(&report)?;
     } else {
         util::print(&format!(
             "valid plan\n{}",

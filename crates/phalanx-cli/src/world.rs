@@ -36,13 +36,8 @@ pub(crate) struct WorldCmd {
     #[arg(long, value_enum, default_value = "pathfinding")]
     policy: TeamPolicy,
     /// The agents' field of view (their policy's).
-    #[arg(long, default_value_t = 9)]
+    #[arg(long, default_value_t = phalanx_gen::DEFAULT_FOV)]
     fov: u32,
-    /// With `--policy hrl`: the footprint penalty of the path-finding cost channel the meta
-    /// policy was trained with (default none; `phalanx run --processes` passes the one its
-    /// meta policy records).
-    #[arg(long, value_name = "L")]
-    footprint_penalty: Option<u32>,
     /// How long to wait for an action before the first agent not in waits this step,
     /// milliseconds.
     #[arg(long, default_value_t = 2000, value_name = "MS")]
@@ -66,8 +61,7 @@ pub(crate) struct WorldCmd {
 pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
-    let mut world =
-        run::world_for(&named, &cmd.instance, cmd.policy, cmd.fov, cmd.footprint_penalty)?;
+    let mut world = run::world_for(&named, &cmd.instance, cmd.policy, cmd.fov)?;
     let n = u16::try_from(named.instance.n_agents()).context("too many agents")?;
     let mut endpoints = Endpoints::world(&cmd.listen);
     endpoints.prefix = cmd.prefix.clone();

@@ -8,10 +8,6 @@ use thiserror::Error;
 /// Most agents in one episode: two `u16` values are reserved in the occupancy grid.
 pub const MAX_AGENTS: usize = u16::MAX as usize - 1;
 
-/// The largest footprint penalty: costs stay far below `u32`'s sentinels on a 4096² map, and
-/// the search's ring of buckets (`λ + 2`) stays short.
-pub const MAX_FOOTPRINT_PENALTY: u32 = 100;
-
 /// Which reward of docs/spec.md §5 (the paper's Table I) the environment pays, which action mask it
 /// writes and when an episode is terminated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -84,40 +80,11 @@ pub struct EnvConfig {
     pub formation_weight: f64,
     /// Steps after which an episode is truncated; `None` means `3 × map side` (the paper).
     pub step_limit: Option<u32>,
-    /// The meta task's idle cost `c`: each step, an agent off its goal that is idle (see
-    /// `idle_scope`) loses `c`; unused by the other tasks. Default 0 (Table I). Not written
+    /// The meta task's idle cost `c`: each step, an agent off its goal that did not get
+    /// closer to it loses `c`; unused by the other tasks. Default 0 (Table I). Not written
     /// when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub idle_cost: f64,
-    /// What counts as idle for `idle_cost`. Default: each agent. Not written when the default.
-    #[serde(skip_serializing_if = "IdleScope::is_agent")]
-    pub idle_scope: IdleScope,
-    /// The footprint penalty `λ` of the path-finding cost channel and mask: with `Some(λ)`,
-    /// each agent's cost map charges `1 + λ` for each cell on the way where the goal layout placed
-    /// with the agent there covers a blocked cell (a team cost map, `docs/hierarchy.md`);
-    /// `None` (the default, the paper's) is the BFS distance. At most 100. Not written when
-    /// `None`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub footprint_penalty: Option<u32>,
-}
-
-/// What the meta task's idle cost charges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum IdleScope {
-    /// Each agent off its goal that did not get closer pays, whatever the others did (the
-    /// default: the shipped meta policy's).
-    #[default]
-    Agent,
-    /// A step in which no agent of the team got closer to its goal: every agent off its goal
-    /// pays (a team that stands, in formation or not).
-    Team,
-}
-
-impl IdleScope {
-    fn is_agent(&self) -> bool {
-        *self == IdleScope::Agent
-    }
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -127,13 +94,11 @@ fn is_zero(x: &f64) -> bool {
 impl Default for EnvConfig {
     fn default() -> EnvConfig {
         EnvConfig {
-            fov: 9,
+            fov: phalanx_gen::DEFAULT_FOV,
             task: Task::PathFinding,
             formation_weight: 1.0,
             step_limit: None,
             idle_cost: 0.0,
-            idle_scope: IdleScope::Agent,
-            footprint_penalty: None,
         }
     }
 }
@@ -144,9 +109,6 @@ pub enum EnvError {
     /// The field of view is even or below 3.
     #[error("field of view {0} must be odd and at least 3")]
     Fov(u32),
-    /// The footprint penalty is above its largest value.
-    #[error("footprint penalty {0} is above the largest, {max}", max = MAX_FOOTPRINT_PENALTY)]
-    FootprintPenalty(u32),
     /// The instance has more agents than the occupancy grid can name.
     #[error("too many agents: {0} (at most {max})", max = MAX_AGENTS)]
     TooManyAgents(usize),

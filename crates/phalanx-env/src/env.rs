@@ -11,13 +11,12 @@ use phalanx_core::{Action, Cell, Grid, Instance, formation_loss};
 use phalanx_gen::GenConfig;
 use rayon::prelude::*;
 
-use crate::config::{MAX_AGENTS, MAX_FOOTPRINT_PENALTY};
+use crate::config::MAX_AGENTS;
 use crate::marl::{ObsBuffers, ObsShape, StepOut};
 use crate::obs::{CHANNELS, COST_SENTINEL, N_ACTIONS, VECTOR_LEN};
-use crate::{Clip, EnvConfig, EnvError, IdleScope, LeaderRule, Task};
+use crate::{Clip, EnvConfig, EnvError, LeaderRule, Task};
 
-mod footprint;
-mod frame;
+pub(crate) mod frame;
 
 /// Padded cells from which the agents' BFS maps are computed in parallel on reset.
 const PARALLEL_BFS_CELLS: usize = 1 << 16;
@@ -103,11 +102,6 @@ pub struct Env {
     blocked: Vec<u8>,
     /// Per agent, padded BFS distances to its goal, `n_agents` blocks of padded cells.
     dist: Vec<u32>,
-    /// Per agent, its team cost map in the same layout when the configuration has a
-    /// footprint penalty (empty otherwise): what the path-finding channel and mask read.
-    team_dist: Vec<u32>,
-    /// Scratch of the team cost maps' search: footprint flags and the buckets.
-    footprint_scratch: (Vec<u8>, Vec<Vec<u32>>),
     /// Number of padded cells.
     n_padded: usize,
     goals: Vec<Cell>,
@@ -141,8 +135,9 @@ pub struct Env {
     rank: Vec<u16>,
     chosen: Vec<Action>,
     n_chosen: usize,
-    /// The formation frame of the hierarchy (empty until [`Env::update_frame`]).
-    frame: frame::Frame,
+    /// Counts the maps (and goals) searched: a part that caches searches of the map (the
+    /// hierarchy's formation frame) knows from it when they are stale.
+    map_epoch: u64,
     /// The map the obstacles and distance maps were last built for (with `goals`).
     searched_map: Option<Grid>,
 }
@@ -152,9 +147,6 @@ impl Env {
     pub fn new(config: EnvConfig) -> Result<Env, EnvError> {
         if config.fov < 3 || config.fov.is_multiple_of(2) {
             return Err(EnvError::Fov(config.fov));
-        }
-        if let Some(penalty) = config.footprint_penalty.filter(|&p| p > MAX_FOOTPRINT_PENALTY) {
-            return Err(EnvError::FootprintPenalty(penalty));
         }
         let fov = config.fov as usize;
         Ok(Env {
@@ -167,8 +159,6 @@ impl Env {
             step_limit: 0,
             blocked: Vec::new(),
             dist: Vec::new(),
-            team_dist: Vec::new(),
-            footprint_scratch: (Vec::new(), Vec::new()),
             n_padded: 0,
             goals: Vec::new(),
             goal_idx: Vec::new(),
@@ -193,7 +183,7 @@ impl Env {
             rank: Vec::new(),
             chosen: Vec::new(),
             n_chosen: 0,
-            frame: frame::Frame::default(),
+            map_epoch: 0,
             searched_map: None,
         })
     }
@@ -205,7 +195,7 @@ impl Env {
     }
 
     /// Sets the meta task's formation weight `w_f` for the following steps (the weight of an
-    /// episode can differ from the configured one, e.g. for a weight-conditioned meta policy).
+    /// episode can differ from the configured one: each team size has its own).
     pub fn set_formation_weight(&mut self, formation_weight: f64) {
         self.config.formation_weight = formation_weight;
     }
@@ -306,7 +296,7 @@ impl Env {
         // Padded obstacles, row by row from the bit-packed grid.
         self.blocked.clear();
         self.blocked.resize(n_padded, 1);
-        self.frame.forget();
+        self.map_epoch += 1;
         for y in 0..h {
             let row = (y + pad) * pw + pad;
             for (x, slot) in self.blocked[row..row + w].iter_mut().enumerate() {
@@ -338,33 +328,12 @@ impl Env {
                 padded_bfs(pw, goal, map, queue);
             }
         }
-        self.team_dist.clear();
-        if let Some(penalty) = self.config.footprint_penalty {
-            self.team_dist.resize(n * n_padded, UNREACHABLE);
-            let (flags, buckets) = &mut self.footprint_scratch;
-            for (agent, map) in self.team_dist.chunks_exact_mut(n_padded).enumerate() {
-                unsearched(map, &self.blocked);
-                let sizes = (pw, pad, w, h);
-                footprint::team_map(
-                    &self.blocked,
-                    sizes,
-                    &self.goals,
-                    agent,
-                    penalty,
-                    flags,
-                    buckets,
-                    map,
-                );
-            }
-        }
     }
 
-    /// Agent `agent`'s map of the path-finding cost channel and mask: its team cost map with
-    /// a footprint penalty, else its BFS distances.
+    /// Agent `agent`'s map of the path-finding cost channel and mask: its BFS distances.
     #[inline]
     fn cost_map(&self, agent: usize) -> &[u32] {
-        let maps = if self.team_dist.is_empty() { &self.dist } else { &self.team_dist };
-        &maps[agent * self.n_padded..(agent + 1) * self.n_padded]
+        &self.dist[agent * self.n_padded..(agent + 1) * self.n_padded]
     }
 
     /// Generates the instance for `config` (with this environment's field of view) and
@@ -531,10 +500,6 @@ impl Env {
         let loss = self.loss as f32;
         let w_f = self.config.formation_weight as f32;
         let c_idle = self.config.idle_cost as f32;
-        // Whether no agent got closer this step: the meta task's team-scope idle cost only.
-        let team_idle = task == Task::Meta
-            && self.config.idle_scope == IdleScope::Team
-            && !self.closer.iter().any(|&c| c);
         let mut team = 0.0;
         for (i, &action) in actions.iter().enumerate() {
             let r = if self.cancelled[i] {
@@ -566,11 +531,7 @@ impl Env {
                     }
                 }
                 Task::Meta => {
-                    let idle = !self.on_goal[i]
-                        && match self.config.idle_scope {
-                            IdleScope::Team => team_idle,
-                            IdleScope::Agent => !self.closer[i],
-                        };
+                    let idle = !self.on_goal[i] && !self.closer[i];
                     -w_f * loss - if idle { c_idle } else { 0.0 }
                 }
             };

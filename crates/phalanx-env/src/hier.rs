@@ -3,8 +3,8 @@
 //!
 //! Each step:
 //! 1. the meta policy observes ([`HierEnv::observe`] writes the meta buffers): the episode's
-//!    four channels and goal vector, optionally followed by the formation-weight multiple (for
-//!    a weight-conditioned meta policy), a mask allowing both choices, and the path-finding
+//!    four channels and goal vector, optionally followed by the vector towards the agent's
+//!    place ([`MetaInputs`]), a mask allowing both choices, and the path-finding
 //!    leader order (the agent in front decides first; later agents see the earlier choices as
 //!    their message);
 //! 2. every agent chooses a low-level policy ([`Choice`]); [`HierEnv::set_choices`] fixes the
@@ -15,7 +15,7 @@
 //!    clipped by those actions ([`HierEnv::clip_claimed`]). The path-finding
 //!    policy reads the episode's observation with path-finding clipping
 //!    ([`HierEnv::pathfinding_obs`]); the formation policy reads the formation frame (the goal
-//!    layout placed on the team, see `Env::update_frame`) with formation clipping
+//!    layout placed on the team, `env/frame.rs`) with formation clipping
 //!    ([`HierEnv::formation_obs`]). The frame is anchored at the leader (the first in the
 //!    order): once the leader has acted, [`HierEnv::place_frame`] puts the leader's slot on
 //!    the cell its action leads to (its own cell when its move is blocked), so that
@@ -27,6 +27,7 @@
 
 use phalanx_core::{Action, Cell, Instance};
 
+use crate::env::frame::Frame;
 use crate::marl::{ObsBuffers, ObsShape, StepOut};
 use crate::obs::{N_ACTIONS, VECTOR_LEN};
 use crate::{Clip, Env, EnvConfig, EnvError, LeaderRule, Task};
@@ -87,22 +88,19 @@ pub fn clip_claimed(
     }
 }
 
-/// What a meta observation's vector holds after the path-finding goal vector: the
-/// formation-weight multiple of the episode (a weight-conditioned meta policy), then the goal
+/// What a meta observation's vector holds after the path-finding goal vector: the goal
 /// vector towards the agent's place in the layout placed on the front agent
-/// ([`Env::write_place_vector`]).
+/// ([`Env::write_place_vector`]), or nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MetaInputs {
-    /// The weight multiple.
-    pub weight: bool,
     /// The vector towards the agent's place.
     pub place: bool,
 }
 
 impl MetaInputs {
-    /// Length of the meta observation's vector.
+    /// Length of the meta observation's vector: the one place it is computed.
     pub fn vector_len(self) -> usize {
-        VECTOR_LEN + usize::from(self.weight) + if self.place { VECTOR_LEN } else { 0 }
+        VECTOR_LEN + if self.place { VECTOR_LEN } else { 0 }
     }
 }
 
@@ -112,7 +110,6 @@ pub struct HierEnv {
     env: Env,
     n_agents: usize,
     inputs: MetaInputs,
-    multiple: f32,
     pathfinding: ObsBuffers,
     formation: ObsBuffers,
     actions: Vec<Action>,
@@ -122,6 +119,8 @@ pub struct HierEnv {
     path_finders: usize,
     /// The followers still to be ordered (scratch of [`HierEnv::place_frame`]).
     unordered: Vec<usize>,
+    /// The formation frame of the current step.
+    frame: Frame,
 }
 
 impl HierEnv {
@@ -139,13 +138,13 @@ impl HierEnv {
             env,
             n_agents,
             inputs,
-            multiple: 0.0,
             pathfinding: ObsBuffers::new(n_agents, low),
             formation: ObsBuffers::new(n_agents, low),
             actions: vec![Action::Wait; n_agents],
             front: 0,
             path_finders: 0,
             unordered: Vec::with_capacity(n_agents),
+            frame: Frame::default(),
         })
     }
 
@@ -174,6 +173,12 @@ impl HierEnv {
         &self.env
     }
 
+    /// The formation frame's goals of the current step (valid after
+    /// [`HierEnv::place_frame`]): each agent's cell of the goal layout placed on the team.
+    pub fn frame_goals(&self) -> &[Cell] {
+        self.frame.goals()
+    }
+
     /// The path-finding policy's observation of the current step (valid after
     /// [`HierEnv::set_choices`], which writes its order).
     pub fn pathfinding_obs(&self) -> &ObsBuffers {
@@ -187,8 +192,7 @@ impl HierEnv {
     }
 
     /// Starts an episode on `instance` whose meta reward weighs `L_f` by `formation_weight`
-    /// per agent; `multiple` is what the meta observation reads as the weight (the
-    /// multiple of the base weight, when the inputs have it); writes the meta observation.
+    /// per agent; writes the meta observation.
     ///
     /// # Errors
     /// If the instance has another agent count or the simulator refuses it.
@@ -196,7 +200,6 @@ impl HierEnv {
         &mut self,
         instance: &Instance,
         formation_weight: f64,
-        multiple: f64,
         meta: &mut ObsBuffers,
     ) -> Result<(), EnvError> {
         if instance.n_agents() != self.n_agents {
@@ -207,7 +210,6 @@ impl HierEnv {
         }
         self.env.set_formation_weight(formation_weight);
         self.env.reset(instance)?;
-        self.multiple = multiple as f32;
         self.observe(meta);
         Ok(())
     }
@@ -233,16 +235,16 @@ impl HierEnv {
             .map(|a| Action::from_index(usize::from(a)).expect("action index below 5").apply(here))
             .filter(|&cell| self.env.distance(leader, cell).is_some())
             .unwrap_or(here);
-        self.env.update_frame(leader, next);
+        self.frame.update(&self.env, leader, next);
         self.chain_order();
-        let env = &self.env;
+        let (env, frame) = (&self.env, &self.frame);
         let shape = self.formation.shape;
         let grids = self.formation.grid.chunks_exact_mut(shape.grid_len());
         let vectors = self.formation.vec.chunks_exact_mut(VECTOR_LEN);
         let masks = self.formation.action_mask.chunks_exact_mut(N_ACTIONS);
         for (agent, ((grid, vector), mask)) in grids.zip(vectors).zip(masks).enumerate() {
-            env.write_frame_grid(agent, grid);
-            env.write_frame_vector(agent, vector);
+            frame.write_grid(env, agent, grid);
+            frame.write_vector(env, agent, vector);
             env.write_mask(agent, Clip::Formation, mask);
         }
     }
@@ -255,7 +257,7 @@ impl HierEnv {
         let order = &mut self.pathfinding.order;
         let first = self.path_finders;
         let positions = self.env.positions();
-        let goals = self.env.frame_goals();
+        let goals = self.frame.goals();
         let tail = &mut self.unordered;
         tail.clear();
         tail.extend_from_slice(&order[first..]);
@@ -298,16 +300,10 @@ impl HierEnv {
         meta.order.clear();
         meta.order.extend(order.iter().map(|&agent| usize::from(agent)));
         let front = meta.order[0];
-        // The layout of `MetaInputs`: the goal vector, the multiple, the place vector.
+        // The layout of `MetaInputs`: the goal vector, then the place vector.
         for (agent, out) in meta.vec.chunks_exact_mut(width).enumerate() {
-            let (goal, rest) = out.split_at_mut(VECTOR_LEN);
+            let (goal, place) = out.split_at_mut(VECTOR_LEN);
             goal.copy_from_slice(self.pathfinding.vec_of(agent));
-            let place = if self.inputs.weight {
-                rest[0] = self.multiple;
-                &mut rest[1..]
-            } else {
-                rest
-            };
             if self.inputs.place {
                 self.env.write_place_vector(agent, front, place);
             }

@@ -32,7 +32,6 @@
 
 mod config;
 mod env;
-mod follow;
 mod formation;
 mod hier;
 mod marl;
@@ -41,11 +40,8 @@ mod pool;
 pub mod sim;
 mod task;
 
-pub use config::{
-    Clip, EnvConfig, EnvError, IdleScope, LeaderRule, MAX_AGENTS, MAX_FOOTPRINT_PENALTY, Task,
-};
+pub use config::{Clip, EnvConfig, EnvError, LeaderRule, MAX_AGENTS, Task};
 pub use env::{Env, Step, StepInfo};
-pub use follow::FollowEnv;
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use hier::{Choice, HierEnv, MetaInputs, clip_claimed};
 pub use marl::{MarlEnv, ObsBuffers, ObsShape, StepOut, step_lockstep};

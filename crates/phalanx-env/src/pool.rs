@@ -66,7 +66,8 @@ pub struct PoolConfig {
 
 impl Default for PoolConfig {
     fn default() -> PoolConfig {
-        PoolConfig { n_maps: 100, size: 32, density: 0.15, fov: 9, seed: 0 }
+        let GenConfig { size, density, fov, .. } = GenConfig::default();
+        PoolConfig { n_maps: 100, size, density, fov, seed: 0 }
     }
 }
 

@@ -83,15 +83,16 @@ impl Method {
                 return Ok(Solved { summary, plan: report.result.ok(), choices: None });
             }
             Solver::PathFinding(policy) => {
-                let env = env_config(policy.config().fov, Task::PathFinding);
+                let env = policy.env_config(Task::PathFinding);
                 evaluate(policy, Task::PathFinding, &env, instances, 1, rollouts, &mut |_| {})?
             }
             Solver::EndToEnd(policy) => {
-                let env = env_config(policy.config().fov, Task::Meta);
+                let env = policy.env_config(Task::Meta);
                 evaluate(policy, Task::Meta, &env, instances, 1, rollouts, &mut |_| {})?
             }
             Solver::Hierarchy(hierarchy) => {
-                let env = env_config(hierarchy.low.fov(), Task::Meta);
+                // The hierarchy sets its own field of view and task.
+                let env = EnvConfig::default();
                 evaluate_hierarchy(hierarchy, &env, instances, 1, rollouts, &mut |_| {})?
             }
         };
@@ -119,10 +120,4 @@ impl Method {
         }
         Ok(())
     }
-}
-
-/// The learned policies' environment: their field of view, the task's rewards and clipping,
-/// the step limit of docs/spec.md §3 (`3 × side`).
-fn env_config(fov: usize, task: Task) -> EnvConfig {
-    EnvConfig { fov: fov as u32, task, ..EnvConfig::default() }
 }

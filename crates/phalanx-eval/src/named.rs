@@ -89,6 +89,19 @@ pub enum MethodError {
         /// The multiples it has, comma-separated.
         have: String,
     },
+    /// `hrl:M` without a front, and the meta policy was trained at another multiple.
+    #[error(
+        "method {spec}: the meta policy was trained at {trained} × w_f, not {multiple} (a \
+         front of meta policies, one per multiple, serves hrl:M)"
+    )]
+    OtherMultiple {
+        /// The whole name.
+        spec: String,
+        /// The multiple named.
+        multiple: f64,
+        /// The multiple the meta policy was trained at.
+        trained: f64,
+    },
     /// A learned method's weights cannot be loaded.
     #[error("method {spec}")]
     Model {
@@ -179,8 +192,12 @@ impl Method {
                     })?),
                     _ => sources.meta,
                 };
-                let multiple = multiple.unwrap_or(1.0);
-                let hierarchy = models::load_hierarchy(meta, multiple).map_err(model)?;
+                let hierarchy = models::load_hierarchy(meta).map_err(model)?;
+                let trained = hierarchy.multiple().unwrap_or(0.0);
+                if let Some(m) = multiple.filter(|&m| m != trained) {
+                    let spec = spec.to_owned();
+                    return Err(MethodError::OtherMultiple { spec, multiple: m, trained });
+                }
                 Ok(Method::new(spec, Solver::Hierarchy(Box::new(hierarchy))))
             }
             other => Err(MethodError::Unknown { name: other.to_owned() }),

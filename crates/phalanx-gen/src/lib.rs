@@ -20,6 +20,16 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
+/// The default map side: the paper's training maps (every default map setting of the
+/// project, the generator's, the training pool's, the commands' flags, is one of these four).
+pub const DEFAULT_SIZE: u32 = 32;
+/// The default fraction of blocked cells.
+pub const DEFAULT_DENSITY: f64 = 0.15;
+/// The default team size.
+pub const DEFAULT_AGENTS: usize = 3;
+/// The default field of view side (the paper's 9 × 9).
+pub const DEFAULT_FOV: u32 = 9;
+
 /// Generator settings: a problem's inputs, so none of them has a hidden default in files.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GenConfig {
@@ -36,9 +46,15 @@ pub struct GenConfig {
 }
 
 impl Default for GenConfig {
-    /// 32×32, density 0.15, 3 agents, seed 0, 9×9 view.
+    /// 32×32, density 0.15, 3 agents, seed 0, 9×9 view ([`DEFAULT_SIZE`] and the others).
     fn default() -> GenConfig {
-        GenConfig { size: 32, density: 0.15, n_agents: 3, seed: 0, fov: 9 }
+        GenConfig {
+            size: DEFAULT_SIZE,
+            density: DEFAULT_DENSITY,
+            n_agents: DEFAULT_AGENTS,
+            seed: 0,
+            fov: DEFAULT_FOV,
+        }
     }
 }
 

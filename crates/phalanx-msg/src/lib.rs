@@ -33,6 +33,10 @@
 //! offsets). An action or a choice is 17 bytes. [`decode`] refuses a short, long or
 //! malformed message with a [`WireError`] naming the field.
 
+mod transport;
+
+pub use transport::{Topic, Transport, TransportError};
+
 /// The wire format's version: a message of another version is refused.
 pub const VERSION: u8 = 1;
 

@@ -2,8 +2,8 @@
 //! cells, the baseline "Joint-State A*" of Liu et al. (IROS 2021), after Felner et al.,
 //! *Search-based optimal solvers for the multi-agent pathfinding problem: summary and
 //! challenges* (SoCS 2017), with operator decomposition from Standley, *Finding optimal
-//! solutions to cooperative pathfinding problems* (AAAI 2010).
-//! Specification: `shared/research/baselines.md` §4.
+//! solutions to cooperative pathfinding problems* (AAAI 2010); docs/planners.md
+//! (*Joint-state A\**) has the decisions.
 //!
 //! - **State:** the ordered k-tuple of cells; no time component.
 //! - **Step:** every agent picks one of the five actions; a joint move is discarded when an

@@ -39,4 +39,4 @@ mod search;
 pub mod swarm;
 
 pub use budget::{Budget, BudgetClock, PlanFailure, PlanReport, SearchStats};
-pub use planner::{PlannerChoice, SolveSummary, run_planner};
+pub use planner::{PlannerChoice, SolveSummary, SummaryMetrics, run_planner};

@@ -98,7 +98,8 @@ impl Outcome {
     }
 }
 
-/// The metrics of a returned plan (docs/spec.md §3).
+/// The metrics of a returned plan (docs/spec.md §3) as every command and the Python package
+/// print them: [`PlanMetrics`] less its per-step losses.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SummaryMetrics {
     /// Every agent reaches its goal.
@@ -111,6 +112,23 @@ pub struct SummaryMetrics {
     pub formation_loss: f64,
     /// Mean per-step `L_f`.
     pub formation_loss_mean: f64,
+    /// Largest per-step `L_f` (absent from records written before it was added: 0).
+    #[serde(default)]
+    pub formation_loss_max: f64,
+}
+
+impl SummaryMetrics {
+    /// The summary of a plan's metrics.
+    pub fn of(m: &PlanMetrics) -> SummaryMetrics {
+        SummaryMetrics {
+            success: m.success,
+            makespan: m.makespan,
+            sum_of_costs: m.sum_of_costs,
+            formation_loss: m.formation_loss,
+            formation_loss_mean: m.formation_loss_mean,
+            formation_loss_max: m.formation_loss_max,
+        }
+    }
 }
 
 /// What `phalanx solve` prints: one run of one planner on one instance.
@@ -157,14 +175,7 @@ impl SolveSummary {
         let (outcome, violation, metrics) = match result {
             Ok(plan) => {
                 let violation = validate(instance, plan).err().map(|v| v.to_string());
-                let m = PlanMetrics::of(instance, plan);
-                let metrics = SummaryMetrics {
-                    success: m.success,
-                    makespan: m.makespan,
-                    sum_of_costs: m.sum_of_costs,
-                    formation_loss: m.formation_loss,
-                    formation_loss_mean: m.formation_loss_mean,
-                };
+                let metrics = SummaryMetrics::of(&PlanMetrics::of(instance, plan));
                 let outcome = if violation.is_some() { Outcome::Invalid } else { Outcome::Solved };
                 (outcome, violation, Some(metrics))
             }

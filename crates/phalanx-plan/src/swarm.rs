@@ -1,9 +1,8 @@
 //! SWARM-MAPF-R: a reconstruction of SWARM-MAPF, the two-phase planner for moving agents in
 //! formation of Li, Sun, Ma, Felner, Kumar and Koenig, *Moving agents in formation in
 //! congested environments* (AAMAS 2020). The paper's full text is not available; this
-//! follows the structure its abstract describes, as specified in
-//! `shared/research/baselines.md` §3.3. Every choice the sources leave open is listed in
-//! `docs/planners.md`.
+//! follows the structure its abstract describes. Every choice the sources leave open is
+//! listed in `docs/planners.md` (*SWARM-MAPF-R*).
 //!
 //! - **Phase 1 (swarm):** pick a leader (the agent whose goal is nearest the goals' centroid),
 //!   express the formation as offsets from the leader's goal, mark as OPEN every cell where the

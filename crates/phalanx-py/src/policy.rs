@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray4, PyUntypedArrayMethods};
 use phalanx_env::obs::{N_ACTIONS, VECTOR_LEN};
-use phalanx_env::{EnvConfig, HierEnv, ObsBuffers, ObsShape, Task};
-use phalanx_rl::{Hierarchy, Policy, models};
+use phalanx_env::{EnvConfig, ObsBuffers, ObsShape};
+use phalanx_rl::{Episodes, Hierarchy, Policy, models};
 use pyo3::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -132,22 +132,19 @@ impl PyPolicy {
 pub(crate) struct PyHierarchy {
     // Boxed: a Python object is only 16-byte aligned, and parts of these are aligned more.
     hierarchy: Box<Hierarchy>,
-    episode: Option<Box<(HierEnv, ObsBuffers)>>,
+    /// The episode (one), once started at a world's first step.
+    episode: Option<Box<Episodes>>,
     choices: Vec<u8>,
 }
 
 #[pymethods]
 impl PyHierarchy {
     /// Loads the meta policy from `weights` (a file or directory) or the shipped model, over
-    /// the low-level policies it was trained over, run at `multiple × w_f`.
+    /// the low-level policies it was trained over.
     #[new]
-    #[pyo3(signature = (weights = None, multiple = 1.0))]
-    fn new(weights: Option<PathBuf>, multiple: f64) -> PyResult<PyHierarchy> {
-        if !(multiple.is_finite() && multiple >= 0.0) {
-            return Err(bad(format!("multiple {multiple} is not a non-negative number")));
-        }
-        let hierarchy =
-            models::load_hierarchy(weights.as_deref(), multiple).map_err(|err| error(&err))?;
+    #[pyo3(signature = (weights = None))]
+    fn new(weights: Option<PathBuf>) -> PyResult<PyHierarchy> {
+        let hierarchy = models::load_hierarchy(weights.as_deref()).map_err(|err| error(&err))?;
         Ok(PyHierarchy { hierarchy: Box::new(hierarchy), episode: None, choices: Vec::new() })
     }
 
@@ -177,40 +174,29 @@ impl PyHierarchy {
         if world.done() {
             return Err(bad("the episode has ended: reset first"));
         }
-        let fresh = world.t() == 0;
-        if fresh {
-            let env = self.hierarchy.low.env_config(&EnvConfig {
-                fov: self.hierarchy.low.fov() as u32,
-                task: Task::Meta,
-                ..EnvConfig::default()
-            });
-            let mut hier =
-                HierEnv::new(env, n, self.hierarchy.meta_inputs()).map_err(|err| error(&err))?;
-            let mut obs = ObsBuffers::new(n, hier.meta_shape());
-            let w_f = self.hierarchy.formation_weight(n);
-            hier.reset_to(instance, w_f, self.hierarchy.multiple, &mut obs)
+        if world.t() == 0 {
+            let mut episode = Box::new(Episodes::new());
+            let instances = std::slice::from_ref(instance);
+            self.hierarchy
+                .start(&mut episode, instances, &EnvConfig::default())
                 .map_err(|err| error(&err))?;
-            self.hierarchy.reset();
-            self.episode = Some(Box::new((hier, obs)));
+            self.episode = Some(episode);
         }
-        let Some((hier, obs)) = self.episode.as_deref_mut() else {
+        let Some(episode) = self.episode.as_deref_mut() else {
             return Err(bad("the hierarchy joins a world at its first step: reset the world"));
         };
-        if hier.env().positions() != world.env_positions() || hier.env().t() != world.t() {
+        let env = episode.env(0).env();
+        if env.positions() != world.env_positions() || env.t() != world.t() {
             return Err(bad(
                 "the world is not where the hierarchy's actions led: step it with the actions \
                  act() returns, or reset both",
             ));
         }
-        let mut choices = vec![0_u8; n];
+        // Greedy: the low level's draws decide nothing at ε = 0.
         let mut greedy = ChaCha8Rng::seed_from_u64(0);
-        let envs = std::slice::from_mut(hier);
-        self.hierarchy.choose(envs, std::slice::from_ref(obs), &mut greedy, &mut choices);
-        envs[0].set_choices(&choices);
-        let mut actions = vec![0_u8; n];
-        self.hierarchy.low.act_batch(envs, &choices, 0.0, &mut greedy, &mut actions);
-        envs[0].step(&actions, obs);
-        self.choices = choices;
-        Ok(actions)
+        let mut outs = Vec::with_capacity(1);
+        self.hierarchy.step(episode, &[true], 0.0, &mut greedy, &mut outs);
+        self.choices = episode.choices(0).to_vec();
+        Ok(episode.actions(0).to_vec())
     }
 }

@@ -10,6 +10,7 @@ use numpy::{PyArray2, PyArrayMethods};
 use phalanx_core::{Cell, Instance, Plan, PlanMetrics, validate as validate_plan};
 use phalanx_eval::{Method, Settings, Sources};
 use phalanx_gen::GenConfig;
+use phalanx_plan::SummaryMetrics;
 use phalanx_rl::{Keep, Rollouts};
 use pyo3::prelude::*;
 
@@ -190,15 +191,9 @@ pub(crate) fn validate(instance: &PyInstance, plan: Paths) -> PyResult<(Option<S
     let plan = Plan::from_paths(&paths);
     let violation = validate_plan(&instance.instance, &plan).err().map(|v| v.to_string());
     let m = PlanMetrics::of(&instance.instance, &plan);
-    let metrics = serde_json::json!({
-        "success": m.success,
-        "makespan": m.makespan,
-        "sum_of_costs": m.sum_of_costs,
-        "formation_loss": m.formation_loss,
-        "formation_loss_mean": m.formation_loss_mean,
-        "formation_loss_max": m.formation_loss_max,
-        "formation_loss_per_step": m.formation_loss_per_step,
-    });
+    // The metrics every command prints, with the per-step losses.
+    let mut metrics = serde_json::to_value(SummaryMetrics::of(&m)).expect("metrics serialise");
+    metrics["formation_loss_per_step"] = serde_json::json!(m.formation_loss_per_step);
     Ok((violation, metrics.to_string()))
 }
 

@@ -8,12 +8,14 @@ use std::hint::black_box;
 
 use burn::tensor::Device;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use phalanx_env::{EnvConfig, HierEnv, ObsBuffers};
+use phalanx_env::{EnvConfig, ObsBuffers};
 use phalanx_gen::GenConfig;
 use phalanx_rl::learner::obs_shape;
 use phalanx_rl::models::load_hierarchy;
 use phalanx_rl::policy_file::load_policy_any;
-use phalanx_rl::{Episode, Learner, LearnerConfig, Policy, QNetConfig, Replay, SequenceMode};
+use phalanx_rl::{
+    Episode, Episodes, Learner, LearnerConfig, Policy, QNetConfig, Replay, SequenceMode,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -133,25 +135,22 @@ fn decision(c: &mut Criterion) {
 /// carried; per agent of a team of one, and per call for a team of 3.
 fn hierarchy_decision(c: &mut Criterion) {
     let shipped = format!("{}/../../models/meta", env!("CARGO_MANIFEST_DIR"));
-    let mut hierarchy = load_hierarchy(Some(shipped.as_ref()), 1.0).expect(&shipped);
-    let env = hierarchy.low.env_config(&EnvConfig::default());
+    let mut hierarchy = load_hierarchy(Some(shipped.as_ref())).expect(&shipped);
     let mut group = c.benchmark_group("hierarchy_decision");
     for agents in [1, 3] {
         let config = GenConfig { size: 32, density: 0.15, n_agents: agents, seed: 3, fov: 9 };
         let instance = phalanx_gen::generate(&config).unwrap();
-        let mut envs = vec![HierEnv::new(env.clone(), agents, hierarchy.meta_inputs()).unwrap()];
-        let mut obs = vec![ObsBuffers::new(agents, envs[0].meta_shape())];
-        let w_f = hierarchy.formation_weight(agents);
-        envs[0].reset_to(&instance, w_f, hierarchy.multiple, &mut obs[0]).unwrap();
-        let (mut choices, mut actions) = (vec![0_u8; agents], vec![0_u8; agents]);
+        let mut episodes = Episodes::new();
+        let instances = std::slice::from_ref(&instance);
+        hierarchy.start(&mut episodes, instances, &EnvConfig::default()).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(6);
-        hierarchy.reset();
+        let mut outs = Vec::with_capacity(1);
+        // The episode is not stepped (`running` false): the decisions of its first state,
+        // every recurrent state carried from call to call.
         group.bench_function(BenchmarkId::new("meta+low", agents), |b| {
             b.iter(|| {
-                hierarchy.choose(&envs, &obs, &mut rng, &mut choices);
-                envs[0].set_choices(&choices);
-                hierarchy.low.act_batch(&mut envs, &choices, 0.0, &mut rng, &mut actions);
-                black_box(actions[0])
+                hierarchy.step(&mut episodes, &[false], 0.0, &mut rng, &mut outs);
+                black_box(episodes.actions(0)[0])
             })
         });
     }

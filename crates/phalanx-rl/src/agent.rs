@@ -213,8 +213,6 @@ pub struct AgentHierarchy {
     meta: AgentPolicy,
     pathfinding: AgentPolicy,
     formation: AgentPolicy,
-    /// The multiple the meta observation holds (a weight-conditioned meta policy).
-    multiple: Option<f32>,
     /// Whether the meta observation ends with the vector towards the agent's place.
     place_input: bool,
     /// This step's meta and path-finding features.
@@ -237,7 +235,6 @@ impl AgentHierarchy {
             meta: AgentPolicy::new(meta.as_ref().clone(), agent)?,
             pathfinding: AgentPolicy::new(low.pathfinding().clone(), agent)?,
             formation: AgentPolicy::new(low.formation().clone(), agent)?,
-            multiple: hierarchy.conditioned().then_some(hierarchy.multiple as f32),
             place_input: hierarchy.place_input,
             observed: None,
             framed: None,
@@ -260,15 +257,14 @@ impl AgentHierarchy {
     /// This step's path-finding observation (`grid` `[C, F, F]`, `vector`: the goal vector,
     /// then the vector towards the agent's place, `phalanx_env::Env::write_place_vector`):
     /// the path-finding and meta recurrent passes. The path-finding policy reads the goal
-    /// vector; the meta policy reads the same grid and the goal vector, with the weight
-    /// multiple of a conditioned meta policy and the place vector of one that reads it.
+    /// vector; the meta policy reads the same grid and the goal vector, with the place
+    /// vector when it reads it.
     ///
     /// # Errors
     /// Inputs of other sizes than the networks'.
     pub fn observe(&mut self, grid: &[f32], vector: &[f32]) -> Result<(), AgentError> {
         let (goal, place) = vector.split_at(VECTOR_LEN.min(vector.len()));
         let mut meta_vector = goal.to_vec();
-        meta_vector.extend(self.multiple);
         if self.place_input {
             meta_vector.extend_from_slice(place);
         }

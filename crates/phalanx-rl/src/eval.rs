@@ -15,12 +15,12 @@
 //! instances and the seed (not on the thread count).
 
 use phalanx_core::{Instance, Plan, PlanMetrics, ViolationKind, validate};
-use phalanx_env::{Choice, Env, EnvConfig, EnvError, HierEnv, ObsBuffers, StepOut, Task, TaskEnv};
+use phalanx_env::{Choice, Env, EnvConfig, EnvError, ObsBuffers, StepOut, Task, TaskEnv};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::hierarchy::Hierarchy;
+use crate::hierarchy::{Episodes, Hierarchy};
 use crate::policy::{Policy, row_offsets};
 
 /// What one evaluated episode measured, with its plan.
@@ -178,9 +178,9 @@ pub fn evaluate_hierarchy(
     rollouts: Rollouts,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
-    let mut envs = Vec::new();
+    let mut episodes = Episodes::new();
     let mut play = |chunk: &[Instance], caps: &[usize], epsilon, rng: &mut ChaCha8Rng| {
-        play_hierarchy(hierarchy, env, chunk, caps, epsilon, rng, &mut envs)
+        play_hierarchy(hierarchy, env, chunk, caps, epsilon, rng, &mut episodes)
     };
     evaluate_with(&mut play, instances, batch, rollouts, progress)
 }
@@ -344,7 +344,7 @@ fn lower_bound(env: &Env) -> u32 {
 /// One rollout of a low-level policy on every instance of `chunk` in lockstep. `envs` are
 /// the environments of the last call, reused where the agent count allows: the rollouts of
 /// an instance then search its distance maps once (`Env::reset` keeps them).
-#[allow(clippy::too_many_arguments, reason = "one rollout's inputs, as play_hierarchy's")]
+#[allow(clippy::too_many_arguments, reason = "one rollout's inputs")]
 fn play_low_level(
     policy: &mut Policy,
     task: Task,
@@ -402,9 +402,10 @@ fn reuse<T>(
     Ok(&mut envs[e])
 }
 
-/// One rollout of the hierarchy on every instance of `chunk` in lockstep: the meta policy
-/// chooses greedily, the low level acts with random actions at rate `epsilon`.
-/// `envs`: as in [`play_low_level`].
+/// One rollout of the hierarchy on every instance of `chunk` in lockstep
+/// ([`Hierarchy::start`], [`Hierarchy::step`]): the meta policy chooses greedily, the low
+/// level acts with random actions at rate `epsilon`. `episodes` are those of the last call,
+/// reused where the agent count allows (see [`play_low_level`]).
 fn play_hierarchy(
     hierarchy: &mut Hierarchy,
     env: &EnvConfig,
@@ -412,43 +413,19 @@ fn play_hierarchy(
     caps: &[usize],
     epsilon: f64,
     rng: &mut ChaCha8Rng,
-    envs: &mut Vec<HierEnv>,
+    episodes: &mut Episodes,
 ) -> Result<Vec<EvalEpisode>, EnvError> {
-    let inputs = hierarchy.meta_inputs();
-    let env = &hierarchy.low.env_config(env);
-    envs.truncate(chunk.len());
-    let mut obs = Vec::with_capacity(chunk.len());
-    for (e, instance) in chunk.iter().enumerate() {
-        let n = instance.n_agents();
-        let fits = |it: &HierEnv| it.n_agents() == n;
-        let hier = reuse(envs, e, fits, || HierEnv::new(env.clone(), n, inputs))?;
-        let mut buffers = ObsBuffers::new(n, hier.meta_shape());
-        let multiple = hierarchy.multiple;
-        let w_f = hierarchy.formation_weight(n);
-        hier.reset_to(instance, w_f, multiple, &mut buffers)?;
-        obs.push(buffers);
-    }
-    let sims: Vec<&Env> = envs.iter().map(|it| it.env()).collect();
+    hierarchy.start(episodes, chunk, env)?;
+    let sims: Vec<&Env> = (0..chunk.len()).map(|e| episodes.env(e).env()).collect();
     let mut tracks = Tracks::new(chunk, caps, &sims, true);
-    let offsets = row_offsets(chunk.iter().map(Instance::n_agents));
-    let rows = chunk.iter().map(Instance::n_agents).sum();
-    let (mut choices, mut actions) = (vec![0_u8; rows], vec![0_u8; rows]);
-    hierarchy.reset();
-    let mut greedy = ChaCha8Rng::seed_from_u64(0);
+    let mut outs = Vec::with_capacity(chunk.len());
     while tracks.running.contains(&true) {
-        hierarchy.choose(envs, &obs, &mut greedy, &mut choices);
-        for (e, hier) in envs.iter_mut().enumerate() {
-            let (at, n) = (offsets[e], chunk[e].n_agents());
-            hier.set_choices(&choices[at..at + n]);
-        }
-        hierarchy.low.act_batch(envs, &choices, epsilon, rng, &mut actions);
-        for (e, hier) in envs.iter_mut().enumerate() {
-            if tracks.running[e] {
-                let (at, n) = (offsets[e], chunk[e].n_agents());
-                let out = hier.step(&actions[at..at + n], &mut obs[e]);
-                tracks.record(e, &out, hier.env().positions());
+        hierarchy.step(episodes, &tracks.running, epsilon, rng, &mut outs);
+        for (e, out) in outs.iter().enumerate() {
+            if let Some(out) = out {
+                tracks.record(e, out, episodes.env(e).env().positions());
                 if let Some(all) = tracks.choices.as_mut() {
-                    all[e].extend_from_slice(&choices[at..at + n]);
+                    all[e].extend_from_slice(episodes.choices(e));
                 }
             }
         }

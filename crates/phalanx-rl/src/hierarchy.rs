@@ -5,17 +5,18 @@
 //!   recurrent passes run for every agent every step (so each policy's state follows the whole
 //!   episode whichever policy acts), then the heads in the step's leader order, each agent
 //!   through the head of the policy it chose, with the message of the actions taken before it;
-//! - [`MetaEnv`]: the [`MarlEnv`] the meta policy trains on: a [`HierEnv`] on the training
-//!   pool whose actions are the meta choices, the low level acting greedily inside the step;
+//! - [`Hierarchy`]: the whole hierarchy at test time, a meta policy (learned or scripted) over
+//!   the low level; it owns an episode and a step ([`Hierarchy::start`], [`Hierarchy::step`]
+//!   on [`Episodes`]), which evaluation, the Python package and the benchmarks call;
 //! - [`FormationWeight`]: the meta reward's weight, `multiple × w_f(k)` for teams of `k`,
 //!   with the base weights of Eq. 14 (`crate::weight`) and the multiples trained.
+//!
+//! The meta policy's training environment over the same low level is `crate::meta_env`'s.
 
+use phalanx_core::Instance;
 use phalanx_env::obs::N_ACTIONS;
-use phalanx_env::{
-    Choice, EnvConfig, EnvError, HierEnv, MarlEnv, MetaInputs, ObsBuffers, ObsShape, PoolConfig,
-    StepOut, TrainPool,
-};
-use rand::{Rng, SeedableRng};
+use phalanx_env::{Choice, EnvConfig, EnvError, HierEnv, MetaInputs, ObsBuffers, StepOut, Task};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
@@ -26,8 +27,6 @@ use crate::policy::{Policy, Turns};
 pub struct LowLevel {
     pathfinding: Policy,
     formation: Policy,
-    /// The footprint penalty of the path-finding cost channel (`EnvConfig::footprint_penalty`).
-    footprint_penalty: Option<u32>,
 }
 
 /// Why two policies cannot make a low level.
@@ -85,25 +84,7 @@ impl LowLevel {
                 return Err(LowLevelError::Mismatch { what, pathfinding: x, formation: y });
             }
         }
-        Ok(LowLevel { pathfinding, formation, footprint_penalty: None })
-    }
-
-    /// The same policies with the path-finding policy reading the team cost map of
-    /// `penalty` (`None`: the BFS distance, the paper's; docs/hierarchy.md).
-    #[must_use]
-    pub fn with_footprint_penalty(self, penalty: Option<u32>) -> LowLevel {
-        LowLevel { footprint_penalty: penalty, ..self }
-    }
-
-    /// The footprint penalty the path-finding policy's cost channel is computed with.
-    pub fn footprint_penalty(&self) -> Option<u32> {
-        self.footprint_penalty
-    }
-
-    /// `base` with this low level's footprint penalty: the settings of the environments it
-    /// acts in.
-    pub fn env_config(&self, base: &EnvConfig) -> EnvConfig {
-        EnvConfig { footprint_penalty: self.footprint_penalty, ..base.clone() }
+        Ok(LowLevel { pathfinding, formation })
     }
 
     /// The path-finding policy.
@@ -139,12 +120,14 @@ impl LowLevel {
         self.formation.reset_envs(agents, restart);
     }
 
-    /// One step of every episode of `envs` after their [`HierEnv::set_choices`]: `choices`
-    /// and `actions` are laid out episode after episode (`[Σ N_e]`, agent order within an
-    /// episode). An agent takes a random action allowed by its chosen policy's mask with
-    /// probability `epsilon` (test-time rollouts), else its policy's greedy one.
+    /// The low-level actions of one step of every episode of `envs` under the meta choices
+    /// `choices`: `choices` and `actions` are laid out episode after episode (`[Σ N_e]`,
+    /// agent order within an episode). An agent takes a random action allowed by its chosen
+    /// policy's mask with probability `epsilon` (test-time rollouts), else its policy's
+    /// greedy one. The episodes are not stepped: the caller applies `actions`.
     ///
-    /// Within the step: the path-finding recurrent pass for every agent; the leaders that
+    /// Within the step: each episode's choices fix its acting order
+    /// ([`HierEnv::set_choices`]); the path-finding recurrent pass for every agent; the leaders that
     /// chose path finding act; the formation frames are anchored at the leaders' next cells
     /// ([`HierEnv::place_frame`]); the formation recurrent pass for every agent; the leaders
     /// that chose formation act; then the other ranks in order, each agent through its
@@ -154,7 +137,7 @@ impl LowLevel {
     ///
     /// # Panics
     /// If the lengths disagree or a choice is not 0 or 1.
-    pub fn act_batch(
+    pub(crate) fn act(
         &mut self,
         envs: &mut [HierEnv],
         choices: &[u8],
@@ -165,6 +148,9 @@ impl LowLevel {
         let rows: usize = envs.iter().map(HierEnv::n_agents).sum();
         assert!(choices.len() == rows && actions.len() == rows, "one choice and action per agent");
         let offsets: Vec<usize> = crate::policy::row_offsets(envs.iter().map(HierEnv::n_agents));
+        for (env, &at) in envs.iter_mut().zip(&offsets) {
+            env.set_choices(&choices[at..at + env.n_agents()]);
+        }
         let formation = |e: usize, agent: usize| {
             Choice::from_index(choices[offsets[e] + agent]).expect("a meta action is 0 or 1")
                 == Choice::Formation
@@ -226,10 +212,6 @@ pub struct MetaInfo {
     pub pathfinding: PolicyRef,
     /// The frozen formation policy.
     pub formation: PolicyRef,
-    /// The footprint penalty of the path-finding cost channel it was trained with (absent:
-    /// none, the BFS distance).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub footprint_penalty: Option<u32>,
     /// Whether its observation ends with the vector towards the agent's place in the layout
     /// placed on the front agent ([`MetaInputs::place`]; absent: no).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -259,25 +241,17 @@ pub struct FormationWeight {
     pub multiples: Multiples,
 }
 
-/// Which multiples of the base weight episodes are drawn with.
+/// Which multiple of the base weight a meta policy trains on. One kind is kept: every
+/// episode at one multiple, a meta policy per Pareto point (a weight-conditioned kind, the
+/// multiple drawn per episode and read by the network, was measured and dropped:
+/// docs/experiments.md).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Multiples {
-    /// Every episode at this multiple (a meta policy per Pareto point).
+    /// Every episode at this multiple.
     Fixed {
         /// The multiple.
         multiple: f64,
-    },
-    /// A weight-conditioned meta policy: the multiple is part of the meta observation; an
-    /// episode takes `0` with probability `p_zero`, else a multiple drawn log-uniformly from
-    /// `[min, max]` (as many episodes between 0.01 and 0.1 as between 0.3 and 3).
-    Conditioned {
-        /// The smallest positive multiple trained.
-        min: f64,
-        /// The largest multiple trained.
-        max: f64,
-        /// Probability of the multiple 0 (path finding only).
-        p_zero: f64,
     },
 }
 
@@ -294,153 +268,77 @@ impl FormationWeight {
             .1
     }
 
-    /// Whether the meta observation carries the multiple.
-    pub fn conditioned(&self) -> bool {
-        matches!(self.multiples, Multiples::Conditioned { .. })
-    }
-
-    /// An episode's multiple, drawn from `rng` for a conditioned policy.
-    pub fn draw_multiple(&self, rng: &mut ChaCha8Rng) -> f64 {
-        match self.multiples {
-            Multiples::Fixed { multiple } => multiple,
-            Multiples::Conditioned { min, max, p_zero } => {
-                if rng.random::<f64>() < p_zero {
-                    0.0
-                } else {
-                    (min.ln() + rng.random::<f64>() * (max.ln() - min.ln())).exp()
-                }
-            }
-        }
-    }
-}
-
-/// The meta policy's training environment: a [`HierEnv`] on the training pool, whose actions
-/// are the agents' meta choices; inside each step the frozen low level acts greedily.
-/// Resets draw the map, the start and goal formation ([`TrainPool::sample_episode`]: wide
-/// in a share of the episodes) and, for a weight-conditioned policy, the weight multiple,
-/// all from the reset's seed.
-#[derive(Clone, Debug)]
-pub struct MetaEnv {
-    hier: HierEnv,
-    pool: TrainPool,
-    low: LowLevel,
-    weight: FormationWeight,
-    reward_scale: f32,
-    wide_share: f64,
-    rng: ChaCha8Rng,
-    actions: Vec<u8>,
-}
-
-impl MetaEnv {
-    /// Generates the pool of `pool` once; teams of `n_agents`, the field of view and step
-    /// limit of `env`; rewards multiplied by `reward_scale` (a training aid; greedy policies
-    /// do not change). With `place_input`, the meta observation ends with the vector towards
-    /// the agent's place ([`MetaInputs::place`]).
-    ///
-    /// # Panics
-    /// If `n_agents` is 0 or the pool has no maps.
-    pub fn new(
-        low: LowLevel,
-        weight: FormationWeight,
-        place_input: bool,
-        pool: &PoolConfig,
-        env: EnvConfig,
-        n_agents: usize,
-        reward_scale: f32,
-    ) -> Result<MetaEnv, EnvError> {
-        let inputs = MetaInputs { weight: weight.conditioned(), place: place_input };
-        let hier = HierEnv::new(env, n_agents, inputs)?;
-        let pool = TrainPool::new(pool)?;
-        assert!(!pool.is_empty(), "the training pool has no maps");
-        Ok(MetaEnv {
-            hier,
-            pool,
-            low,
-            weight,
-            reward_scale,
-            wide_share: 0.0,
-            rng: ChaCha8Rng::seed_from_u64(0),
-            actions: vec![0; n_agents],
-        })
-    }
-
-    /// The same environment with a share `wide_share` of its episodes' teams drawn wide
-    /// ([`TrainPool::sample_wide`]; 0 at first).
-    pub fn with_wide_share(self, wide_share: f64) -> MetaEnv {
-        MetaEnv { wide_share, ..self }
-    }
-
-    /// The same pool, low level and weights for teams of `n_agents` (the pool is shared, not
-    /// regenerated).
-    ///
-    /// # Panics
-    /// If `n_agents` is 0.
-    pub fn with_agents(&self, n_agents: usize) -> Result<MetaEnv, EnvError> {
-        let config = self.hier.env().config().clone();
-        let hier = HierEnv::new(config, n_agents, self.hier.meta_inputs())?;
-        Ok(MetaEnv {
-            hier,
-            pool: self.pool.clone(),
-            low: self.low.clone(),
-            weight: self.weight.clone(),
-            reward_scale: self.reward_scale,
-            wide_share: self.wide_share,
-            rng: ChaCha8Rng::seed_from_u64(0),
-            actions: vec![0; n_agents],
-        })
-    }
-
-    /// The running episode.
-    pub fn hier(&self) -> &HierEnv {
-        &self.hier
-    }
-}
-
-impl MarlEnv for MetaEnv {
-    fn n_agents(&self) -> usize {
-        self.hier.n_agents()
-    }
-
-    fn obs_shape(&self) -> ObsShape {
-        self.hier.meta_shape()
-    }
-
-    fn reset(&mut self, seed: u64, obs: &mut ObsBuffers) {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let n_agents = self.hier.n_agents();
-        let instance = self.pool.sample_episode(n_agents, self.wide_share, &mut rng);
-        let multiple = self.weight.draw_multiple(&mut rng);
-        let w_f = multiple * self.weight.base_for(n_agents);
-        self.hier.reset_to(&instance, w_f, multiple, obs).expect("pool instances fit");
-        self.low.reset();
-        self.rng = rng;
-    }
-
-    fn step(&mut self, actions: &[u8], obs: &mut ObsBuffers) -> StepOut {
-        self.hier.set_choices(actions);
-        let hier = std::slice::from_mut(&mut self.hier);
-        self.low.act_batch(hier, actions, 0.0, &mut self.rng, &mut self.actions);
-        let mut out = self.hier.step(&self.actions, obs);
-        out.team_reward *= self.reward_scale;
-        out
+    /// The multiple of the base weight.
+    pub fn multiple(&self) -> f64 {
+        let Multiples::Fixed { multiple } = self.multiples;
+        multiple
     }
 }
 
 /// The whole hierarchy at test time: a meta policy (learned or scripted) over the low level,
-/// a learned one run at one multiple of the base formation weight (read by a
-/// weight-conditioned meta policy).
+/// a learned one trained at one multiple of the base formation weight.
 #[derive(Clone, Debug)]
 pub struct Hierarchy {
     /// The meta policy.
-    pub meta: MetaPolicy,
+    pub(crate) meta: MetaPolicy,
     /// The frozen low-level policies.
-    pub low: LowLevel,
+    pub(crate) low: LowLevel,
     /// The formation weights the meta policy was trained with (a scripted one has none).
-    pub weight: Option<FormationWeight>,
-    /// The multiple of the base weight to run at.
-    pub multiple: f64,
+    weight: Option<FormationWeight>,
     /// Whether the meta observation ends with the vector towards the agent's place.
-    pub place_input: bool,
+    pub(crate) place_input: bool,
+}
+
+/// The running episodes of a [`Hierarchy`], one per instance, stepped together
+/// ([`Hierarchy::start`], [`Hierarchy::step`]): each episode's environment and meta
+/// observation, and the last step's choices and actions. Environments are kept across
+/// starts where the agent count allows, so that the rollouts of an instance search its
+/// distance maps once.
+#[derive(Debug, Default)]
+pub struct Episodes {
+    envs: Vec<HierEnv>,
+    obs: Vec<ObsBuffers>,
+    /// First row of each episode in `choices` and `actions`.
+    offsets: Vec<usize>,
+    choices: Vec<u8>,
+    actions: Vec<u8>,
+    /// The meta policy's random stream (greedy: it draws, but a draw never decides).
+    greedy: Option<ChaCha8Rng>,
+}
+
+impl Episodes {
+    /// No episodes yet.
+    pub fn new() -> Episodes {
+        Episodes::default()
+    }
+
+    /// Number of episodes.
+    pub fn len(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.envs.is_empty()
+    }
+
+    /// Episode `e`'s environment (positions, time, `L_f`).
+    ///
+    /// # Panics
+    /// If there is no episode `e`.
+    pub fn env(&self, e: usize) -> &HierEnv {
+        &self.envs[e]
+    }
+
+    /// Episode `e`'s choices of the last step ([`Choice`] indices by agent).
+    pub fn choices(&self, e: usize) -> &[u8] {
+        &self.choices[self.offsets[e]..self.offsets[e] + self.envs[e].n_agents()]
+    }
+
+    /// Episode `e`'s actions of the last step (action indices by agent).
+    pub fn actions(&self, e: usize) -> &[u8] {
+        &self.actions[self.offsets[e]..self.offsets[e] + self.envs[e].n_agents()]
+    }
 }
 
 /// What chooses each agent's low-level policy every step.
@@ -528,8 +426,7 @@ pub enum HierarchyError {
 
 impl Hierarchy {
     /// The hierarchy of a meta policy (2 actions, the low level's field of view, a vector
-    /// input of [`MetaInputs::vector_len`]: 3, one more weight-conditioned, three more with
-    /// `place_input`) over `low`.
+    /// input of [`MetaInputs::vector_len`]: 3, three more with `place_input`) over `low`.
     ///
     /// # Errors
     /// If the meta network does not fit or `weight` has no base weight.
@@ -537,11 +434,10 @@ impl Hierarchy {
         meta: Policy,
         low: LowLevel,
         weight: FormationWeight,
-        multiple: f64,
         place_input: bool,
     ) -> Result<Hierarchy, HierarchyError> {
         let c = meta.config();
-        let vec = MetaInputs { weight: weight.conditioned(), place: place_input }.vector_len();
+        let vec = MetaInputs { place: place_input }.vector_len();
         for (what, found, expected) in [
             ("actions", c.n_actions, Choice::COUNT),
             ("a field of view of", c.fov, low.fov()),
@@ -558,30 +454,24 @@ impl Hierarchy {
             meta: MetaPolicy::Learned(Box::new(meta)),
             low,
             weight: Some(weight),
-            multiple,
             place_input,
         })
     }
 
     /// The hierarchy of a scripted meta policy over `low`.
     pub fn scripted(rule: ScriptedMeta, low: LowLevel) -> Hierarchy {
-        Hierarchy {
-            meta: MetaPolicy::Scripted(rule),
-            low,
-            weight: None,
-            multiple: 0.0,
-            place_input: false,
-        }
-    }
-
-    /// Whether the meta observation carries the weight multiple.
-    pub fn conditioned(&self) -> bool {
-        self.weight.as_ref().is_some_and(FormationWeight::conditioned)
+        Hierarchy { meta: MetaPolicy::Scripted(rule), low, weight: None, place_input: false }
     }
 
     /// What the meta observation's vector holds.
     pub fn meta_inputs(&self) -> MetaInputs {
-        MetaInputs { weight: self.conditioned(), place: self.place_input }
+        MetaInputs { place: self.place_input }
+    }
+
+    /// The multiple of the base weight a learned meta policy was trained at (`None`: a
+    /// scripted one).
+    pub fn multiple(&self) -> Option<f64> {
+        self.weight.as_ref().map(FormationWeight::multiple)
     }
 
     /// The largest team it runs: the agent slots of the low level and of a learned meta
@@ -596,7 +486,7 @@ impl Hierarchy {
     /// The meta reward's formation weight for teams of `n_agents` (0 for a scripted meta
     /// policy, which has no reward).
     pub fn formation_weight(&self, n_agents: usize) -> f64 {
-        self.weight.as_ref().map_or(0.0, |w| self.multiple * w.base_for(n_agents))
+        self.weight.as_ref().map_or(0.0, |w| w.multiple() * w.base_for(n_agents))
     }
 
     /// Forget every episode's state (recurrent states, waiting runs).
@@ -608,9 +498,105 @@ impl Hierarchy {
         self.low.reset();
     }
 
+    /// The frozen low-level policies.
+    pub fn low(&self) -> &LowLevel {
+        &self.low
+    }
+
+    /// The formation weights a learned meta policy was trained with (`None`: a scripted one).
+    pub fn weight(&self) -> Option<&FormationWeight> {
+        self.weight.as_ref()
+    }
+
+    /// The field of view the policies read.
+    pub fn fov(&self) -> usize {
+        self.low.fov()
+    }
+
+    /// The settings of the environments it runs in: the meta task with `base`'s step limit
+    /// and its policies' field of view (`Policy::env_config`).
+    pub fn env_config(&self, base: &EnvConfig) -> EnvConfig {
+        EnvConfig { step_limit: base.step_limit, ..self.low.pathfinding.env_config(Task::Meta) }
+    }
+
+    /// Starts one episode per instance in `episodes` (its environments reused where the agent
+    /// count fits), with the step limit of `env`, and forgets every recurrent state.
+    ///
+    /// # Errors
+    /// If the environment refuses an instance (field of view, agent count).
+    pub fn start(
+        &mut self,
+        episodes: &mut Episodes,
+        instances: &[Instance],
+        env: &EnvConfig,
+    ) -> Result<(), EnvError> {
+        let inputs = self.meta_inputs();
+        let env = self.env_config(env);
+        let envs = &mut episodes.envs;
+        envs.truncate(instances.len());
+        episodes.obs.clear();
+        for (e, instance) in instances.iter().enumerate() {
+            let n = instance.n_agents();
+            // The field of view and task are the hierarchy's; the weight is set per episode.
+            let fits = |it: &HierEnv| {
+                it.n_agents() == n
+                    && it.meta_inputs() == inputs
+                    && it.env().config().step_limit == env.step_limit
+            };
+            if !envs.get(e).is_some_and(fits) {
+                let fresh = HierEnv::new(env.clone(), n, inputs)?;
+                if e < envs.len() {
+                    envs[e] = fresh;
+                } else {
+                    envs.push(fresh);
+                }
+            }
+            let hier = &mut envs[e];
+            let mut obs = ObsBuffers::new(n, hier.meta_shape());
+            hier.reset_to(instance, self.formation_weight(n), &mut obs)?;
+            episodes.obs.push(obs);
+        }
+        episodes.offsets = crate::policy::row_offsets(instances.iter().map(Instance::n_agents));
+        let rows = instances.iter().map(Instance::n_agents).sum();
+        episodes.choices = vec![0; rows];
+        episodes.actions = vec![0; rows];
+        episodes.greedy = Some(ChaCha8Rng::seed_from_u64(0));
+        self.reset();
+        Ok(())
+    }
+
+    /// One step of the running episodes: the meta policy chooses every agent's low-level
+    /// policy (greedily), the low level acts ([`LowLevel::act`]: a random allowed action with
+    /// probability `epsilon`, drawn from `rng`), and each episode `e` with `running[e]` applies
+    /// its joint action; `outs[e]` is that step's outcome (`None` for an episode not
+    /// stepped). Every episode takes part in the choices and the actions, stepped or not, so
+    /// that the random draws of the others do not depend on which have ended.
+    ///
+    /// # Panics
+    /// If `running` does not have one flag per episode, or an episode stepped has ended.
+    pub fn step(
+        &mut self,
+        episodes: &mut Episodes,
+        running: &[bool],
+        epsilon: f64,
+        rng: &mut ChaCha8Rng,
+        outs: &mut Vec<Option<StepOut>>,
+    ) {
+        assert_eq!(running.len(), episodes.len(), "one flag per episode");
+        let greedy = episodes.greedy.get_or_insert_with(|| ChaCha8Rng::seed_from_u64(0));
+        self.choose(&episodes.envs, &episodes.obs, greedy, &mut episodes.choices);
+        self.low.act(&mut episodes.envs, &episodes.choices, epsilon, rng, &mut episodes.actions);
+        outs.clear();
+        for (e, (hier, obs)) in episodes.envs.iter_mut().zip(&mut episodes.obs).enumerate() {
+            let at = episodes.offsets[e];
+            let actions = &episodes.actions[at..at + hier.n_agents()];
+            outs.push(running[e].then(|| hier.step(actions, obs)));
+        }
+    }
+
     /// The meta choices of every episode of `envs` from their meta observations `obs`
     /// (greedy for a learned meta policy).
-    pub fn choose(
+    fn choose(
         &mut self,
         envs: &[HierEnv],
         obs: &[ObsBuffers],

@@ -7,8 +7,10 @@
 //! - [`policy`]: acting, one episode or many in lockstep (batched inference, leader order);
 //! - [`agent`]: one agent acting alone on its own observation and message (decentralised);
 //! - [`eval`]: greedy evaluation on given instances, in lockstep batches;
-//! - [`hierarchy`]: the meta policy's low level over the two frozen policies and its training
-//!   environment ([`MetaEnv`]);
+//! - [`hierarchy`]: the meta policy's low level over the two frozen policies, and the whole
+//!   hierarchy at test time, which owns an episode and a step;
+//! - [`meta_env`]: the meta policy's training environment ([`MetaEnv`]) and the schedule of
+//!   its formation-weight multiples;
 //! - [`weight`]: the balancing weight `w_f` of Eq. 14;
 //! - [`settings`]: a training run's settings, the task defaults and the collectors they build;
 //! - [`train`]: the collect/update loop ([`Collector`]) and its metric names;
@@ -43,6 +45,7 @@ mod frozen;
 pub mod hierarchy;
 mod hyper;
 pub mod learner;
+pub mod meta_env;
 pub mod models;
 pub mod net;
 pub mod policy;
@@ -57,10 +60,11 @@ pub use agent::{AgentError, AgentHierarchy, AgentPolicy, Features};
 pub use eval::evaluate_hierarchy;
 pub use eval::{EvalEpisode, EvalSummary, Keep, Rollouts, evaluate};
 pub use hierarchy::{
-    FormationWeight, Hierarchy, LowLevel, MetaEnv, MetaInfo, MetaPolicy, Multiples, PolicyRef,
+    Episodes, FormationWeight, Hierarchy, LowLevel, MetaInfo, MetaPolicy, Multiples, PolicyRef,
     ScriptedMeta,
 };
 pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
+pub use meta_env::{MetaEnv, MetaEnvConfig};
 pub use net::{EncoderConfig, NetConfigError, QNet, QNetConfig, RecurrentState};
 pub use policy::{Policy, RecurrentStateError};
 pub use policy_file::CheckpointError;

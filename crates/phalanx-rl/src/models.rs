@@ -64,8 +64,8 @@ pub enum ModelError {
     /// The two low-level policies do not fit together.
     #[error("the low-level policies")]
     LowLevel(#[source] LowLevelError),
-    /// A Pareto set's directory cannot be listed, holds no meta policy, or holds one that
-    /// is weight-conditioned or shares its multiple with another.
+    /// A Pareto set's directory cannot be listed, holds no meta policy, or holds two at one
+    /// multiple.
     #[error("the meta policies of the front in {}: {why}", dir.display())]
     Front {
         /// The directory.
@@ -186,7 +186,7 @@ pub fn low_level_of(pathfinding: Policy, formation: Option<&Path>) -> Result<Low
 }
 
 /// The shipped model a meta policy's low-level policy defaults to: the one whose directory
-/// under `models/` names the file it was trained over (`models/follow/policy.bin`: `follow`),
+/// under `models/` names the file it was trained over (`models/formation/policy.bin`: `formation`),
 /// else `fallback`.
 fn shipped_name<'a>(policy: &'a PolicyRef, fallback: &'a str) -> &'a str {
     let path = Path::new(&policy.file);
@@ -199,8 +199,7 @@ fn shipped_name<'a>(policy: &'a PolicyRef, fallback: &'a str) -> &'a str {
 
 /// The hierarchy of the meta policy `meta` (read from `file` with `header`) over the
 /// low-level policies it was trained over (by default the shipped models its files name),
-/// or those given, with the footprint penalty it was trained with; run at
-/// `multiple` × `w_f`.
+/// or those given.
 ///
 /// # Errors
 /// If the file is no meta policy, or a low-level policy cannot be read or is not the one
@@ -211,27 +210,24 @@ pub fn hierarchy(
     file: &Path,
     pathfinding: Option<&Path>,
     formation: Option<&Path>,
-    multiple: f64,
 ) -> Result<Hierarchy, ModelError> {
     let info = header.meta.as_ref().ok_or_else(|| ModelError::NotMeta { file: file.into() })?;
     let (pf, pf_ref) = load(pathfinding, "pathfinding")?;
     let (fm, fm_ref) = load(formation, shipped_name(&info.formation, "formation"))?;
     check_low_level(info, &pf_ref, &fm_ref, &file.display().to_string())?;
-    let low = LowLevel::new(pf, fm)
-        .map_err(ModelError::LowLevel)?
-        .with_footprint_penalty(info.footprint_penalty);
-    Hierarchy::new(meta, low, info.weight.clone(), multiple, info.place_input)
+    let low = LowLevel::new(pf, fm).map_err(ModelError::LowLevel)?;
+    Hierarchy::new(meta, low, info.weight.clone(), info.place_input)
         .map_err(|source| ModelError::Hierarchy { file: file.into(), source })
 }
 
 /// The hierarchy of the meta policy in `path` (a file or weights directory; the shipped
-/// `models/meta` when `None`) over its shipped low level, at `multiple` × `w_f`.
+/// `models/meta` when `None`) over its shipped low level.
 ///
 /// # Errors
 /// As [`load_with_header`] and [`hierarchy`].
-pub fn load_hierarchy(path: Option<&Path>, multiple: f64) -> Result<Hierarchy, ModelError> {
+pub fn load_hierarchy(path: Option<&Path>) -> Result<Hierarchy, ModelError> {
     let (meta, header, file) = load_with_header(path, "meta")?;
-    hierarchy(meta, &header, &file, None, None, multiple)
+    hierarchy(meta, &header, &file, None, None)
 }
 
 /// A Pareto set: meta policies each trained at one fixed multiple of `w_f`.
@@ -249,8 +245,7 @@ impl MetaFront {
     ///
     /// # Errors
     /// [`ModelError::NoWeights`] without a directory, and [`ModelError::Front`] if one cannot
-    /// be listed, holds no meta policy, or one that is weight-conditioned, or two at one
-    /// multiple.
+    /// be listed, holds no meta policy, or two at one multiple.
     pub fn load(dir: Option<&Path>) -> Result<MetaFront, ModelError> {
         let dir = match dir {
             Some(dir) => dir.to_path_buf(),
@@ -271,12 +266,7 @@ impl MetaFront {
             let header = crate::policy_file::read_header(&file)
                 .map_err(|source| ModelError::Load { name: "meta".into(), source })?;
             let info = header.meta.ok_or_else(|| ModelError::NotMeta { file: file.clone() })?;
-            let crate::Multiples::Fixed { multiple } = info.weight.multiples else {
-                return Err(front(format!(
-                    "{} is weight-conditioned; a front holds one policy per multiple",
-                    file.display()
-                )));
-            };
+            let multiple = info.weight.multiple();
             if let Some((_, other)) = points.iter().find(|(m, _)| *m == multiple) {
                 return Err(front(format!(
                     "{} and {} were both trained at the multiple {multiple}",
@@ -311,7 +301,7 @@ mod tests {
     #[test]
     fn a_meta_policy_defaults_to_the_shipped_low_level_its_file_names() {
         let named = |file: &str| PolicyRef { file: file.into(), crc32: "0".into() };
-        assert_eq!(shipped_name(&named("models/follow/policy.bin"), "formation"), "follow");
+        assert_eq!(shipped_name(&named("models/tuned/policy.bin"), "formation"), "tuned");
         assert_eq!(shipped_name(&named("/x/models/formation/policy.bin"), "f"), "formation");
         assert_eq!(shipped_name(&named("/work/runs/f/policy.bin"), "formation"), "formation");
         assert_eq!(shipped_name(&named("policy.bin"), "formation"), "formation");
@@ -356,7 +346,7 @@ mod tests {
 
     #[test]
     fn the_shipped_models_load_and_fit_together() {
-        let hierarchy = load_hierarchy(None, 1.0).unwrap();
+        let hierarchy = load_hierarchy(None).unwrap();
         assert!(hierarchy.n_agents_max() >= 5);
         let (pathfinding, _) = load(None, "pathfinding").unwrap();
         assert!(low_level_of(pathfinding, None).is_ok());

@@ -7,12 +7,13 @@
 
 use std::path::PathBuf;
 
-use phalanx_env::{EnvConfig, EnvError, FollowEnv, MarlEnv, PoolConfig, PoolEnv, Shaping, Task};
+use phalanx_env::{EnvConfig, EnvError, MarlEnv, PoolConfig, PoolEnv, Shaping, Task};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::hierarchy::{FormationWeight, LowLevel, MetaEnv, Multiples};
+use crate::hierarchy::{FormationWeight, LowLevel, Multiples};
 use crate::hyper::LearnerConfig;
+use crate::meta_env::{MetaEnv, MetaEnvConfig};
 use crate::net::QNetConfig;
 use crate::train::Collector;
 use crate::weight::WeightConfig;
@@ -25,10 +26,6 @@ pub enum TrainTask {
     PathFinding,
     /// The formation policy ([`Task::Formation`]: formation-training placements on the pool).
     Formation,
-    /// The formation policy trained to follow inside a moving team ([`FollowEnv`]: a
-    /// scripted leader on its path, the others on the formation frame), usually fine-tuned
-    /// from the formation policy.
-    Follow,
     /// The meta policy over the two frozen low-level policies ([`MetaEnv`]).
     Meta,
     /// The end-to-end VDN baseline (docs/spec.md §7): one network of the five moves on the meta
@@ -47,7 +44,6 @@ impl TrainTask {
         match self {
             TrainTask::PathFinding => "pathfinding",
             TrainTask::Formation => "formation",
-            TrainTask::Follow => "follow",
             TrainTask::Meta => "meta",
             TrainTask::EndToEnd => "e2e",
             TrainTask::Centralised => "ctce",
@@ -65,9 +61,7 @@ impl TrainTask {
         match self {
             TrainTask::PathFinding => Task::PathFinding,
             TrainTask::Formation => Task::Formation,
-            TrainTask::Follow | TrainTask::Meta | TrainTask::EndToEnd | TrainTask::Centralised => {
-                Task::Meta
-            }
+            TrainTask::Meta | TrainTask::EndToEnd | TrainTask::Centralised => Task::Meta,
         }
     }
 }
@@ -120,8 +114,7 @@ pub struct MetaSettings {
     /// The base weights `w_f` per team size, `(size, w_f)`; `None`: estimated at the start of
     /// the run with [`MetaSettings::estimate`] (Eq. 14) and written into the run's config.
     pub base_weight: Option<Vec<(usize, f64)>>,
-    /// The multiples of the base weight trained (default: weight-conditioned, 0 in a tenth of
-    /// the episodes, else log-uniform on `[0.01, 3]`).
+    /// The multiple of the base weight trained (default 0.1, the shipped meta policy's).
     pub multiples: Multiples,
     /// How the base weights are estimated when not given.
     pub estimate: WeightConfig,
@@ -140,7 +133,7 @@ impl Default for MetaSettings {
             pathfinding: None,
             formation: None,
             base_weight: None,
-            multiples: Multiples::Conditioned { min: 0.01, max: 3.0, p_zero: 0.1 },
+            multiples: Multiples::Fixed { multiple: 0.1 },
             estimate: WeightConfig::default(),
             place_input: false,
             wide_share: 0.0,
@@ -184,10 +177,10 @@ impl TrainConfig {
     /// - formation: teams of 3, 4 and 5 in 15 environments, episodes of at most 64 steps, the
     ///   goal-progress bonus 20 and reward scale 0.05 (the shipped formation policy's
     ///   settings);
-    /// - follow: teams of 3, 4 and 5 in 15 environments, full-length episodes, the footprint
-    ///   penalty 4, reward scale 0.1, 200 000 steps;
-    /// - meta: teams of 3, 4 and 5 in 15 environments, full-length episodes (`3 × side`), a
-    ///   network of two actions reading the weight multiple (`env_vec` 4), reward scale 0.1,
+    /// - meta: the shipped meta policy's settings (`models/meta`): teams of 3, 4 and 5 in 15
+    ///   environments, full-length episodes (`3 × side`), a network of two actions reading
+    ///   the place vector (`env_vec` 6, `meta.place_input`), `0.1 × w_f`, half the episodes'
+    ///   teams drawn wide (`meta.wide_share` 0.5), the idle cost 1.5, reward scale 0.1,
     ///   300 000 steps;
     /// - e2e: the meta task's teams, episodes and reward scale with the five moves, one fixed
     ///   multiple (1) of the base weights, and 900 000 steps (three times the meta policy's,
@@ -205,31 +198,34 @@ impl TrainConfig {
                 reward_scale: Some(0.05),
                 ..base
             },
-            TrainTask::Follow => TrainConfig {
-                agent_counts: vec![3, 4, 5],
-                n_envs: 15,
-                steps: 200_000,
-                env: EnvConfig { footprint_penalty: Some(4), ..base.env.clone() },
-                reward_scale: Some(0.1),
-                ..base
-            },
             TrainTask::Meta => TrainConfig {
                 agent_counts: vec![3, 4, 5],
                 n_envs: 15,
                 steps: 300_000,
-                net: QNetConfig { n_actions: 2, env_vec: 4, ..QNetConfig::default() },
+                net: QNetConfig { n_actions: 2, env_vec: 6, ..QNetConfig::default() },
+                env: EnvConfig { idle_cost: 1.5, ..base.env.clone() },
                 reward_scale: Some(0.1),
-                ..base
-            },
-            TrainTask::EndToEnd => TrainConfig {
-                steps: 900_000,
-                net: QNetConfig::default(),
                 meta: MetaSettings {
-                    multiples: Multiples::Fixed { multiple: 1.0 },
+                    place_input: true,
+                    wide_share: 0.5,
                     ..MetaSettings::default()
                 },
-                ..TrainConfig::for_task(TrainTask::Meta)
+                ..base
             },
+            TrainTask::EndToEnd => {
+                let meta = TrainConfig::for_task(TrainTask::Meta);
+                TrainConfig {
+                    agent_counts: meta.agent_counts,
+                    n_envs: meta.n_envs,
+                    steps: 900_000,
+                    reward_scale: meta.reward_scale,
+                    meta: MetaSettings {
+                        multiples: Multiples::Fixed { multiple: 1.0 },
+                        ..MetaSettings::default()
+                    },
+                    ..base
+                }
+            }
             TrainTask::Centralised => {
                 let e2e = TrainConfig::for_task(TrainTask::EndToEnd);
                 TrainConfig { net: QNetConfig { centralised: true, ..e2e.net.clone() }, ..e2e }
@@ -288,30 +284,9 @@ impl TrainConfig {
         if !(idle.is_finite() && idle >= 0.0) {
             return invalid(format!("env.idle_cost {idle} must be a non-negative number"));
         }
-        if let Some(penalty) = self.env.footprint_penalty
-            && penalty > phalanx_env::MAX_FOOTPRINT_PENALTY
-        {
-            return invalid(format!(
-                "env.footprint_penalty {penalty} is above the largest, {}",
-                phalanx_env::MAX_FOOTPRINT_PENALTY
-            ));
-        }
-        match self.meta.multiples {
-            Multiples::Fixed { multiple } if !(multiple.is_finite() && multiple >= 0.0) => {
-                return invalid(format!("meta.multiples: multiple {multiple} is not a weight"));
-            }
-            Multiples::Conditioned { min, max, p_zero }
-                if !(min > 0.0
-                    && max >= min
-                    && max.is_finite()
-                    && (0.0..=1.0).contains(&p_zero)) =>
-            {
-                return invalid(format!(
-                    "meta.multiples: need 0 < min <= max and p_zero in [0, 1], not min {min}, \
-                     max {max}, p_zero {p_zero}"
-                ));
-            }
-            _ => {}
+        let Multiples::Fixed { multiple } = self.meta.multiples;
+        if !(multiple.is_finite() && multiple >= 0.0) {
+            return invalid(format!("meta.multiples: multiple {multiple} is not a weight"));
         }
         let wide = self.meta.wide_share;
         if !(0.0..=1.0).contains(&wide) {
@@ -352,11 +327,8 @@ impl TrainConfig {
             .base_weight
             .as_ref()
             .and_then(|base| base.iter().find(|&&(k, _)| k == n_agents).map(|&(_, w)| w));
-        match (base, self.meta.multiples) {
-            (Some(w), Multiples::Fixed { multiple }) => w * multiple,
-            (Some(w), Multiples::Conditioned { .. }) => w,
-            (None, _) => self.env.formation_weight,
-        }
+        let Multiples::Fixed { multiple } = self.meta.multiples;
+        base.map_or(self.env.formation_weight, |w| w * multiple)
     }
 
     /// The low-level and end-to-end tasks' collector: `n_envs` [`PoolEnv`]s of `task` taking
@@ -382,21 +354,6 @@ impl TrainConfig {
         })
     }
 
-    /// The follow task's collector: `n_envs` [`FollowEnv`]s taking the team sizes in turn,
-    /// with the task's reward scale.
-    ///
-    /// # Errors
-    /// If the environment or the pool cannot be built.
-    pub fn follow_collector(&self) -> Result<Collector<FollowEnv>, EnvError> {
-        let first = FollowEnv::new(
-            &self.pool,
-            self.env.clone(),
-            self.agent_counts[0],
-            self.reward_scale_for(TrainTask::Follow),
-        )?;
-        self.collector_of(&first, FollowEnv::with_agents)
-    }
-
     /// The meta task's collector over `low` with the base weights `base` (`(size, w_f)`).
     ///
     /// # Errors
@@ -406,17 +363,15 @@ impl TrainConfig {
         low: LowLevel,
         base: Vec<(usize, f64)>,
     ) -> Result<Collector<MetaEnv>, EnvError> {
-        let weight = FormationWeight { base, multiples: self.meta.multiples };
-        let first = MetaEnv::new(
-            low,
-            weight,
-            self.meta.place_input,
-            &self.pool,
-            self.env.clone(),
-            self.agent_counts[0],
-            self.reward_scale_for(TrainTask::Meta),
-        )?
-        .with_wide_share(self.meta.wide_share);
+        let config = MetaEnvConfig {
+            weight: FormationWeight { base, multiples: self.meta.multiples },
+            place_input: self.meta.place_input,
+            pool: self.pool.clone(),
+            env: self.env.clone(),
+            reward_scale: self.reward_scale_for(TrainTask::Meta),
+            wide_share: self.meta.wide_share,
+        };
+        let first = MetaEnv::new(low, config, self.agent_counts[0])?;
         self.collector_of(&first, MetaEnv::with_agents)
     }
 

@@ -41,14 +41,9 @@ pub struct WeightConfig {
 
 impl Default for WeightConfig {
     fn default() -> Self {
-        WeightConfig {
-            horizon: 20,
-            episodes: 500,
-            size: 32,
-            density: 0.15,
-            seed: 0,
-            resamples: 2000,
-        }
+        // The default maps' side and density.
+        let phalanx_env::GenConfig { size, density, .. } = phalanx_env::GenConfig::default();
+        WeightConfig { horizon: 20, episodes: 500, size, density, seed: 0, resamples: 2000 }
     }
 }
 
@@ -92,13 +87,8 @@ pub fn estimate_weight(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<WeightEstimate>, EnvError> {
     assert!(config.episodes > 0 && config.resamples > 0, "episodes and resamples must be positive");
-    let fov = formation.config().fov as u32;
-    let env = EnvConfig {
-        fov,
-        task: Task::Formation,
-        step_limit: Some(config.horizon),
-        ..EnvConfig::default()
-    };
+    let env =
+        EnvConfig { step_limit: Some(config.horizon), ..formation.env_config(Task::Formation) };
     let mut res = Vec::with_capacity(agent_counts.len());
     let mut done = 0;
     for &n_agents in agent_counts {
@@ -106,7 +96,7 @@ pub fn estimate_weight(
             size: config.size,
             density: config.density,
             n_agents: 1,
-            fov,
+            fov: env.fov,
             seed: config.seed,
         });
         let starts = maps.formation_instances(n_agents, config.episodes)?;

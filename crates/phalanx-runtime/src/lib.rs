@@ -18,11 +18,10 @@ pub mod agent;
 pub mod hier;
 pub mod inproc;
 pub mod run;
-pub mod transport;
 pub mod world;
 
 pub use agent::{Agent, AgentFault, Decide, Machine};
 pub use hier::{DecideHier, HierAgent};
+pub use phalanx_msg::{Topic, Transport, TransportError};
 pub use run::{RunError, run_agent, run_world, run_world_paced};
-pub use transport::{Topic, Transport, TransportError};
 pub use world::{World, WorldFault};

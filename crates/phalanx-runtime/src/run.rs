@@ -5,8 +5,8 @@ use std::time::{Duration, Instant};
 
 use phalanx_msg::{Message, WireError, decode};
 
-use crate::transport::{Topic, Transport, TransportError};
 use crate::{AgentFault, Machine, World};
+use phalanx_msg::{Topic, Transport, TransportError};
 
 /// How often the loops look at the transport's knowledge of its peers while they wait.
 const POLL: Duration = Duration::from_millis(20);

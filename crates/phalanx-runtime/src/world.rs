@@ -106,14 +106,13 @@ impl World {
         episode: u32,
     ) -> Result<World, WorldFault> {
         let n = instance.n_agents();
-        // The weight multiple is the agents' to add to their meta observation, and the
-        // formation weight only weighs the meta reward: neither is the world's. The vector
+        // The formation weight only weighs the meta reward: it is not the world's. The vector
         // towards each agent's place goes to every agent; a meta policy that does not read
         // it ignores it.
-        let inputs = MetaInputs { weight: false, place: true };
+        let inputs = MetaInputs { place: true };
         let mut env = HierEnv::new(config, n, inputs)?;
         let mut meta = ObsBuffers::new(n, env.meta_shape());
-        env.reset_to(instance, 0.0, 0.0, &mut meta)?;
+        env.reset_to(instance, 0.0, &mut meta)?;
         let positions = env.env().positions().to_vec();
         let hier = Hier {
             env,

@@ -22,7 +22,7 @@ fn policy() -> Policy {
 }
 
 fn hierarchy() -> Hierarchy {
-    phalanx_rl::models::load_hierarchy(None, 1.0).expect("the shipped meta policy")
+    phalanx_rl::models::load_hierarchy(None).expect("the shipped meta policy")
 }
 
 /// A meta policy that reads the vector towards each agent's place (an untrained network over
@@ -32,8 +32,8 @@ fn place_hierarchy() -> Hierarchy {
     let config = QNetConfig { n_actions: 2, env_vec: 6, ..QNetConfig::default() };
     let net = config.init(&mut ChaCha8Rng::seed_from_u64(1), &Default::default());
     let meta = Policy::new(&net, config);
-    let weight = shipped.weight.expect("a learned meta policy has weights");
-    Hierarchy::new(meta, shipped.low, weight, 1.0, true).expect("a meta network that fits")
+    let weight = shipped.weight().expect("a learned meta policy has weights").clone();
+    Hierarchy::new(meta, shipped.low().clone(), weight, true).expect("a meta network that fits")
 }
 
 /// The hierarchy a team of the hierarchy runs.

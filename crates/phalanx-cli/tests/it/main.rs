@@ -8,6 +8,7 @@ use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
 mod kill;
+mod models;
 mod motion;
 mod processes;
 mod render;
@@ -174,7 +175,7 @@ fn bad_input_exits_2() {
     }
     let (_, stderr) = check(&phalanx(d, &["eval", "--policy", "pathfinding", "--maps", "0"]), 2);
     assert!(stderr.contains("--maps 0"), "{stderr}");
-    for bad in ["--multiple=-1", "--random-prob=inf"] {
+    for bad in ["--rollouts=0", "--random-prob=inf"] {
         let (_, stderr) = check(&phalanx(d, &["eval", "--policy", "hrl", bad]), 2);
         assert!(stderr.contains(bad.split('=').next().unwrap()), "{stderr}");
     }
@@ -220,38 +221,6 @@ fn train_writes_metrics_and_checkpoint_then_resumes() {
     assert_eq!(both[..first.len()], first[..]);
     assert_eq!(both.last().unwrap().1, 300);
     assert!(both[first.len()..].iter().all(|(_, step)| *step > 200));
-}
-
-#[test]
-fn train_follow_fine_tunes_the_formation_policy_and_resumes_exactly() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let config = r#"{
-        "agent_counts": [3, 4], "n_envs": 2, "checkpoint_every": 4, "pool": {"n_maps": 2},
-        "env": {"step_limit": 12},
-        "learner": {"gamma": 0.95, "lr": 0.0001, "batch_size": 2, "replay_capacity": 50,
-            "sequence": {"kind": "windows", "len": 4, "burn_in": 2},
-            "target_update_interval": 10,
-            "epsilon": {"start": 0.05, "end": 0.05, "decay_steps": 1},
-            "grad_clip_norm": 10.0, "learning_starts": 2, "train_every": 4}
-    }"#;
-    std::fs::write(d.join("cfg.json"), config).unwrap();
-    let args = ["train", "follow", "--config", "cfg.json", "--steps", "80", "--out", "run"];
-    let (stdout, _) = check(&phalanx(d, &args), 0);
-    assert!(summary_value(&stdout, "updates") >= 4, "{stdout}");
-    // From the shipped formation policy, with the team cost map of the task's default.
-    let saved = std::fs::read_to_string(d.join("run/config.json")).unwrap();
-    assert!(saved.contains("models/formation/policy.bin"), "{saved}");
-    assert!(saved.contains("\"footprint_penalty\": 4"), "{saved}");
-    let args = ["train", "follow", "--resume", "--steps", "120", "--out", "run"];
-    check(&phalanx(d, &args), 0);
-    let args = ["train", "follow", "--config", "cfg.json", "--steps", "120", "--out", "whole"];
-    check(&phalanx(d, &args), 0);
-    assert_eq!(learning(&d.join("run")), learning(&d.join("whole")));
-    // The fine-tuned policy is a formation policy: the leader rule runs it.
-    let args = ["eval", "--policy", "leader", "--formation-weights", "run", "--maps", "2"];
-    let args = [&args[..], &["--size", "16", "--footprint-penalty", "4", "--json"]].concat();
-    check(&phalanx(d, &args), 0);
 }
 
 #[test]
@@ -390,7 +359,7 @@ fn learned_policies_solve_instance_files() {
     assert!(stderr.contains("not on its goal"), "{stderr}");
 
     // The scripted leader rule over the shipped low level, with and without closing up.
-    for extra in [&[][..], &["--wait-above", "0.5"], &["--footprint-penalty", "4"]] {
+    for extra in [&[][..], &["--wait-above", "0.5"]] {
         let args = [&["solve", "inst.yaml", "--planner", "leader", "-o", "lead.yaml"][..], extra];
         check(&phalanx(d, &args.concat()), 0);
         check(&phalanx(d, &["validate", "inst.yaml", "lead.yaml"]), 0);
@@ -399,14 +368,9 @@ fn learned_policies_solve_instance_files() {
     let (stdout, _) = check(&phalanx(d, &[&args[..], &["--json"]].concat()), 0);
     let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(report["episodes"], 2, "{stdout}");
-    for flag in [&["--wait-above", "1"][..], &["--footprint-penalty", "4"]] {
-        let args = [&["solve", "inst.yaml", "--planner", "pathfinding"][..], flag].concat();
-        let (_, stderr) = check(&phalanx(d, &args), 2);
-        assert!(stderr.contains(flag[0]), "{stderr}");
-    }
-    let args = ["solve", "inst.yaml", "--planner", "leader", "--footprint-penalty", "101"];
+    let args = ["solve", "inst.yaml", "--planner", "pathfinding", "--wait-above", "1"];
     let (_, stderr) = check(&phalanx(d, &args), 2);
-    assert!(stderr.contains("101") && stderr.contains("--footprint-penalty"), "{stderr}");
+    assert!(stderr.contains("--wait-above"), "{stderr}");
 
     for bad in [
         &["--rollouts", "0"][..],
@@ -443,7 +407,7 @@ fn meta_training_weight_and_hierarchy_run_end_to_end() {
         "agent_counts": [3], "n_envs": 2, "checkpoint_every": 5, "pool": {"n_maps": 2},
         "env": {"step_limit": 12},
         "learner": {"batch_size": 4, "learning_starts": 2, "train_every": 4},
-        "meta": {"base_weight": [[3, 4.5]]}
+        "meta": {"base_weight": [[3, 4.5]], "place_input": false}
     }"#;
     std::fs::write(d.join("meta.json"), config).unwrap();
     let args = ["train", "meta", "--config", "meta.json", "--steps", "60", "--out", "run"];
@@ -451,26 +415,25 @@ fn meta_training_weight_and_hierarchy_run_end_to_end() {
     let saved: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("run/config.json")).unwrap()).unwrap();
     assert_eq!(saved["net"]["n_actions"], 2);
-    for multiple in ["0", "1"] {
-        let args = ["eval", "--policy", "hrl", "--weights", "run", "--maps", "2", "--size", "16"];
-        let args = [&args[..], &["--multiple", multiple, "--json"]].concat();
-        let (stdout, _) = check(&phalanx(d, &args), 0);
-        let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
-        assert_eq!(report["episodes"], 2, "{stdout}");
-    }
-    // A meta policy that reads the place vector, warm-started from the one above (its three
-    // new inputs weighted zero); solved alone and run decentralised, the same plan.
-    let place = config.replacen('{', r#"{"init_from": "run/policy.bin", "#, 1);
+    let args = ["eval", "--policy", "hrl", "--weights", "run", "--maps", "2", "--size", "16"];
+    let (stdout, _) = check(&phalanx(d, &[&args[..], &["--json"]].concat()), 0);
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(report["episodes"], 2, "{stdout}");
+    // A meta policy that reads the place vector (the task's default), warm-started from the
+    // one above (its three new inputs weighted zero); solved alone and run decentralised,
+    // the same plan.
+    let place = config
+        .replacen('{', r#"{"init_from": "run/policy.bin", "#, 1)
+        .replace(r#""place_input": false"#, r#""place_input": true"#);
     std::fs::write(d.join("place.json"), place).unwrap();
-    let args = ["train", "meta", "--config", "place.json", "--place-input", "--steps", "60"];
-    check(&phalanx(d, &[&args[..], &["--out", "place"]].concat()), 0);
+    let args = ["train", "meta", "--config", "place.json", "--steps", "60", "--out", "place"];
+    check(&phalanx(d, &args), 0);
     let saved: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("place/config.json")).unwrap())
             .unwrap();
-    // The goal vector, the weight multiple (the task's default is weight-conditioned), the
-    // place vector.
+    // The goal vector, then the place vector.
     let inputs = (&saved["net"]["env_vec"], &saved["meta"]["place_input"]);
-    assert_eq!(inputs, (&7.into(), &true.into()));
+    assert_eq!(inputs, (&6.into(), &true.into()));
     check(&phalanx(d, &["gen", "--size", "16", "--seed", "3", "-o", "inst.yaml"]), 0);
     let solve = ["solve", "inst.yaml", "--planner", "hrl", "--weights", "place", "--rollouts"];
     check(&phalanx(d, &[&solve[..], &["1", "--partial", "-o", "solved.yaml"]].concat()), 0);

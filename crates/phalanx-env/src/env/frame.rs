@@ -5,7 +5,7 @@
 //! slot of the layout, which is how it reshapes. On the way to far goals those inputs would
 //! lead it to the far goals instead. The frame gives it the inputs of its training: the goal
 //! layout translated onto the team so that an *anchor* agent's slot is a given cell (the
-//! anchor's cell after its move this step, see [`Env::update_frame`]); each agent's *frame
+//! anchor's cell after its move this step, see [`Frame::update`]); each agent's *frame
 //! goal* is its cell of that placement, with BFS distances from each frame goal within a
 //! window of radius [`RADIUS`] around it (cells beyond the window count as blocked, as the
 //! training maps' walls do). The placement is exact: a slot inside a wall stays there and its
@@ -17,7 +17,9 @@
 //! not depend on where the goals lie.
 //!
 //! The frame is derived from the joint state, as the leader order is: the world supplies it
-//! with each agent's observation.
+//! with each agent's observation. It is a part of the hierarchy's environment
+//! (`crate::HierEnv` owns one), read from an [`Env`]'s state; this module sits below `env`
+//! because it reads the simulator's padded map.
 
 use phalanx_core::Cell;
 
@@ -36,10 +38,11 @@ const PADDED: usize = SIDE + 2;
 /// A window's cells (`PADDED × PADDED`, with the border).
 const CELLS: usize = PADDED * PADDED;
 
-/// The frame of the current state (see the module docs); empty until
-/// [`Env::update_frame`].
+/// The frame of the current state (see the module docs); empty until [`Frame::update`].
 #[derive(Debug, Clone, Default)]
-pub(super) struct Frame {
+pub(crate) struct Frame {
+    /// The simulator's map the windows were searched on ([`Env::map_epoch`]).
+    epoch: u64,
     /// Each agent's frame goal.
     goals: Vec<Cell>,
     /// Per agent, `PADDED × PADDED` BFS distances from its frame goal, row-major from the
@@ -60,25 +63,24 @@ pub(super) struct Frame {
 }
 
 impl Frame {
-    /// Forgets the searched windows (the map changed).
-    pub(super) fn forget(&mut self) {
-        self.searched.clear();
-    }
-}
-
-impl Env {
-    /// Computes the formation frame with agent `anchor`'s slot on `anchor_cell`: the frame
-    /// goals and their distance windows. Call it after every reset and step whose frame
-    /// observations are read ([`Env::write_frame_grid`], [`Env::write_frame_vector`]).
+    /// Computes the formation frame of `env`'s state with agent `anchor`'s slot on
+    /// `anchor_cell`: the frame goals and their distance windows. Call it after every reset
+    /// and step whose frame observations are read ([`Frame::write_grid`],
+    /// [`Frame::write_vector`]).
     ///
     /// # Panics
     /// If `anchor` is not an agent.
-    pub fn update_frame(&mut self, anchor: usize, anchor_cell: Cell) {
-        let n = self.pos.len();
-        let (ox, oy) = (anchor_cell.x - self.goals[anchor].x, anchor_cell.y - self.goals[anchor].y);
-        let mut frame = std::mem::take(&mut self.frame);
+    pub(crate) fn update(&mut self, env: &Env, anchor: usize, anchor_cell: Cell) {
+        let n = env.pos.len();
+        let (ox, oy) = (anchor_cell.x - env.goals[anchor].x, anchor_cell.y - env.goals[anchor].y);
+        if self.epoch != env.map_epoch {
+            // Another map or other goals: no window searched before holds.
+            self.searched.clear();
+            self.epoch = env.map_epoch;
+        }
+        let frame = self;
         frame.goals.clear();
-        frame.goals.extend(self.goals.iter().map(|g| g.offset(ox, oy)));
+        frame.goals.extend(env.goals.iter().map(|g| g.offset(ox, oy)));
         frame.dist.resize(n * CELLS, UNREACHABLE);
         frame.queue.resize(CELLS, 0);
         frame.free.resize(CELLS, false);
@@ -88,46 +90,45 @@ impl Env {
             // The map does not change within an episode (resets clear `searched`), so a
             // window searched from the same goal is still right: the whole window, or the
             // part the agent's view reads from where it stands.
-            let (goal, here) = (frame.goals[agent], self.pos[agent]);
+            let (goal, here) = (frame.goals[agent], env.pos[agent]);
             let fresh = match frame.searched[agent] {
                 Some((searched, part)) => searched != goal || part.is_some_and(|at| at != here),
                 None => true,
             };
             if fresh {
                 let (queue, free, wanted) = (&mut frame.queue, &mut frame.free, &mut frame.wanted);
-                let whole = self.window_bfs(goal, here, window, queue, free, wanted);
+                let whole = env.window_bfs(goal, here, window, queue, free, wanted);
                 frame.searched[agent] = Some((goal, (!whole).then_some(here)));
             }
         }
         frame.on_goal.clear();
-        frame.on_goal.extend(self.pos.iter().zip(&frame.goals).map(|(p, g)| p == g));
-        self.frame = frame;
+        frame.on_goal.extend(env.pos.iter().zip(&frame.goals).map(|(p, g)| p == g));
     }
 
-    /// The frame goals of the last [`Env::update_frame`].
-    pub fn frame_goals(&self) -> &[Cell] {
-        &self.frame.goals
+    /// The frame goals of the last [`Frame::update`].
+    pub(crate) fn goals(&self) -> &[Cell] {
+        &self.goals
     }
 
-    /// Agent `agent`'s channels in the formation frame, `[4, F, F]`: the episode's channels
-    /// ([`Env::write_grid`]) with the cost channel measured to the frame goal. When the agent
-    /// stands outside its frame goal's window, the cost channel uses Manhattan distances to
-    /// the frame goal instead (blocked cells keep the sentinel).
+    /// Agent `agent`'s channels in the formation frame of `env`'s state, `[4, F, F]`: the
+    /// episode's channels ([`Env::write_grid`]) with the cost channel measured to the frame
+    /// goal. When the agent stands outside its frame goal's window, the cost channel uses
+    /// Manhattan distances to the frame goal instead (blocked cells keep the sentinel).
     ///
     /// # Panics
     /// If the frame was never computed.
-    pub fn write_frame_grid(&self, agent: usize, out: &mut [f32]) {
-        assert_eq!(self.frame.goals.len(), self.pos.len(), "update_frame first");
-        self.write_grid(agent, out);
-        let f = self.fov;
-        let r = self.pad as i32;
+    pub(crate) fn write_grid(&self, env: &Env, agent: usize, out: &mut [f32]) {
+        assert_eq!(self.goals.len(), env.pos.len(), "update the frame first");
+        env.write_grid(agent, out);
+        let f = env.fov;
+        let r = env.pad as i32;
         let cost = &mut out[2 * f * f..3 * f * f];
         debug_assert_eq!(CHANNELS, 4);
-        let here = self.pos[agent];
-        let goal = self.frame.goals[agent];
-        let window = &self.frame.dist[agent * CELLS..(agent + 1) * CELLS];
+        let here = env.pos[agent];
+        let goal = self.goals[agent];
+        let window = &self.dist[agent * CELLS..(agent + 1) * CELLS];
         debug_assert!(
-            matches!(self.frame.searched[agent], Some((g, part)) if g == goal && part.is_none_or(|at| at == here)),
+            matches!(self.searched[agent], Some((g, part)) if g == goal && part.is_none_or(|at| at == here)),
             "the window was searched for this goal and cell"
         );
         let manhattan = |c: Cell| (c.x - goal.x).unsigned_abs() + (c.y - goal.y).unsigned_abs();
@@ -136,13 +137,13 @@ impl Env {
         for (row, line) in cost.chunks_exact_mut(f).enumerate() {
             for (col, value) in line.iter_mut().enumerate() {
                 let cell = here.offset(col as i32 - r, row as i32 - r);
-                if !self.padded_free(cell) {
+                if !env.padded_free(cell) {
                     *value = COST_SENTINEL;
                     continue;
                 }
-                let other_on_goal = self.occupant(cell).is_some_and(|j| {
-                    j != agent && self.frame.on_goal.get(j).copied().unwrap_or(false)
-                });
+                let other_on_goal = env
+                    .occupant(cell)
+                    .is_some_and(|j| j != agent && self.on_goal.get(j).copied().unwrap_or(false));
                 let rel = match own {
                     Some(own) => window_at(window, goal, cell).map(|d| d as f32 - own as f32),
                     None => Some(manhattan(cell) as f32 - manhattan(here) as f32),
@@ -159,11 +160,12 @@ impl Env {
     ///
     /// # Panics
     /// If the frame was never computed.
-    pub fn write_frame_vector(&self, agent: usize, out: &mut [f32]) {
-        let (p, g) = (self.pos[agent], self.frame.goals[agent]);
-        write_goal_vector(p, g, self.fov, out);
+    pub(crate) fn write_vector(&self, env: &Env, agent: usize, out: &mut [f32]) {
+        write_goal_vector(env.pos[agent], self.goals[agent], env.fov, out);
     }
+}
 
+impl Env {
     /// Agent `agent`'s goal vector towards its *place*: its cell of the goal layout placed
     /// so that agent `front`'s cell is `front`'s goal cell of the layout (scaled as
     /// [`Env::write_vector`]; zeros for `front` itself and for an agent on its place). Unlike
@@ -297,5 +299,103 @@ pub(super) fn write_goal_vector(p: Cell, g: Cell, fov: usize, out: &mut [f32]) {
         out[0] = (dx / norm) as f32;
         out[1] = (dy / norm) as f32;
         out[2] = (norm / (norm + fov as f64)) as f32;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use phalanx_core::{Action, Cell};
+    use phalanx_gen::GenConfig;
+
+    use super::Frame;
+    use crate::{Env, EnvConfig, ObsBuffers};
+
+    /// An environment reset on the map and goals of its last episode keeps its obstacles,
+    /// distance maps and frame windows; a reset on another map with the same goals must not:
+    /// every observation (the formation frame's included) equals a fresh environment's.
+    #[test]
+    fn a_reset_keeps_the_distance_maps_of_the_same_map_only() {
+        let config = GenConfig { size: 24, density: 0.15, n_agents: 3, seed: 5, fov: 9 };
+        let a = phalanx_gen::generate(&config).unwrap();
+        // The same starts and goals on a map with a wall beside the first agent.
+        let mut grid = a.grid().clone();
+        let keep = |cell| a.starts().contains(&cell) || a.goals().contains(&cell);
+        let start = a.starts()[0];
+        for dy in -2..=2 {
+            for dx in [-2, 2] {
+                let cell = Cell::new(start.x + dx, start.y + dy);
+                if grid.in_bounds(cell) && !keep(cell) {
+                    grid.set_blocked(cell, true);
+                }
+            }
+        }
+        let b = phalanx_core::Instance::new(grid, a.starts().to_vec(), a.goals().to_vec()).unwrap();
+        assert_ne!(a.grid(), b.grid());
+        let views = |env: &mut Env, frame: &mut Frame| {
+            let mut obs = ObsBuffers::new(env.n_agents(), env.obs_shape());
+            env.observe(&mut obs);
+            let mut frames = vec![0.0; env.n_agents() * obs.shape.grid_len()];
+            frame.update(env, 0, env.positions()[0]);
+            for (agent, out) in frames.chunks_exact_mut(obs.shape.grid_len()).enumerate() {
+                frame.write_grid(env, agent, out);
+            }
+            let costs: Vec<u32> = (0..env.n_agents()).map(|i| env.cost_to_go(i)).collect();
+            (obs.grid, frames, costs)
+        };
+        let fresh = |inst: &phalanx_core::Instance| {
+            let mut env = Env::new(EnvConfig::default()).unwrap();
+            env.reset(inst).unwrap();
+            views(&mut env, &mut Frame::default())
+        };
+        let (mut env, mut frame) = (Env::new(EnvConfig::default()).unwrap(), Frame::default());
+        for (i, inst) in [&a, &a, &b, &b, &a].into_iter().enumerate() {
+            env.reset(inst).unwrap();
+            let kept = views(&mut env, &mut frame);
+            assert!(kept == fresh(inst), "reset {i} differs from a fresh environment");
+        }
+        assert!(fresh(&a) != fresh(&b), "the wall changes what the agents see");
+    }
+
+    /// Frame windows are kept from step to step (and searched only as far as an agent's view):
+    /// after every step the frame views equal those of a fresh environment placed in the same
+    /// state, whether the frame goals moved, or stayed while the agents moved.
+    #[test]
+    fn frame_views_after_steps_equal_a_fresh_search() {
+        let config = GenConfig { size: 32, density: 0.15, n_agents: 3, seed: 9, fov: 9 };
+        let inst = phalanx_gen::generate(&config).unwrap();
+        let frames = |env: &Env, frame: &mut Frame, anchor_cell| {
+            frame.update(env, 0, anchor_cell);
+            let len = env.obs_shape().grid_len();
+            let mut out = vec![0.0; env.n_agents() * len];
+            for (agent, grid) in out.chunks_exact_mut(len).enumerate() {
+                frame.write_grid(env, agent, grid);
+            }
+            out
+        };
+        let (mut env, mut frame) = (Env::new(EnvConfig::default()).unwrap(), Frame::default());
+        env.reset(&inst).unwrap();
+        let fixed = inst.starts()[0];
+        for t in 0..40 {
+            // The frame anchored at a fixed cell for a few steps (the goals stay, the agents
+            // move), then at the first agent (the goals move with it).
+            let anchor = if t % 10 < 5 { fixed } else { env.positions()[0] };
+            let kept = frames(&env, &mut frame, anchor);
+            let placed = phalanx_core::Instance::new(
+                inst.grid().clone(),
+                env.positions().to_vec(),
+                inst.goals().to_vec(),
+            )
+            .unwrap();
+            let mut fresh = Env::new(EnvConfig::default()).unwrap();
+            fresh.reset(&placed).unwrap();
+            assert!(
+                kept == frames(&fresh, &mut Frame::default(), anchor),
+                "step {t}: a kept window differs"
+            );
+            if env.is_done() {
+                break;
+            }
+            env.step(&[Action::ALL[t % 4], Action::ALL[(t / 3) % 4], Action::ALL[(t / 7) % 4]]);
+        }
     }
 }

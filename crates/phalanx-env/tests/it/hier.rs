@@ -11,7 +11,7 @@ fn row() -> (HierEnv, ObsBuffers) {
     let inst = instance(12, 4, &[], &[c(1, 1), c(2, 1), c(3, 1)], &[c(9, 1), c(10, 1), c(11, 1)]);
     let mut hier = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(3, hier.meta_shape());
-    hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
+    hier.reset_to(&inst, 1.0, &mut meta).unwrap();
     (hier, meta)
 }
 
@@ -35,13 +35,13 @@ fn the_frame_moves_with_a_path_finding_leader() {
     assert_eq!(hier.leader(), 0);
     // The leader moves right (action 3): every slot moves one step right.
     hier.place_frame(Some(3));
-    assert_eq!(hier.env().frame_goals(), [c(2, 1), c(3, 1), c(4, 1)]);
+    assert_eq!(hier.frame_goals(), [c(2, 1), c(3, 1), c(4, 1)]);
     // Down (action 1): every slot one step down instead.
     hier.place_frame(Some(1));
-    assert_eq!(hier.env().frame_goals(), [c(1, 0), c(2, 0), c(3, 0)]);
+    assert_eq!(hier.frame_goals(), [c(1, 0), c(2, 0), c(3, 0)]);
     // Without a move, the front agent's slot is its own cell.
     hier.place_frame(None);
-    assert_eq!(hier.env().frame_goals(), [c(1, 1), c(2, 1), c(3, 1)]);
+    assert_eq!(hier.frame_goals(), [c(1, 1), c(2, 1), c(3, 1)]);
 }
 
 #[test]
@@ -49,13 +49,13 @@ fn a_team_closing_up_gathers_on_its_front_agent() {
     let inst = instance(12, 4, &[], &[c(1, 1), c(2, 2), c(4, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
     let mut hier = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(3, hier.meta_shape());
-    hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
+    hier.reset_to(&inst, 1.0, &mut meta).unwrap();
     // Costs 7, 8, 6: agent 2 is in front; everyone chooses formation.
     assert_eq!(meta.order, [2, 0, 1]);
     hier.set_choices(&[1, 1, 1]);
     hier.place_frame(None);
     // The slots are placed with agent 2's on its own cell, not the centre agent's.
-    assert_eq!(hier.env().frame_goals(), [c(2, 1), c(3, 1), c(4, 1)]);
+    assert_eq!(hier.frame_goals(), [c(2, 1), c(3, 1), c(4, 1)]);
 }
 
 #[test]
@@ -95,7 +95,7 @@ fn a_translating_team_moves_front_first() {
     let inst = instance(12, 4, &[], &starts, &goals);
     let mut hier = HierEnv::new(EnvConfig::default(), 4, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(4, hier.meta_shape());
-    hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
+    hier.reset_to(&inst, 1.0, &mut meta).unwrap();
     hier.set_choices(&[0, 1, 1, 1]);
     // The formation rule alone: nearest the centroid (x = 2.5) first, ties by index.
     assert_eq!(hier.pathfinding_obs().order, [0, 2, 3, 1]);
@@ -111,64 +111,29 @@ fn a_translating_team_moves_front_first() {
 }
 
 #[test]
-fn the_path_finding_channel_reads_the_team_cost_map_with_a_footprint_penalty() {
-    // Agent 0 below agent 1, travelling right along y = 0; a wall cell at (3, 1) is in the
-    // way of agent 1, so agent 0 may not lead the team straight on at (3, 0).
-    let inst = instance(8, 4, &[c(3, 1)], &[c(1, 0), c(1, 1)], &[c(6, 0), c(6, 1)]);
-    let plain_and_team = [None, Some(100)].map(|penalty| {
-        let config = EnvConfig { footprint_penalty: penalty, ..EnvConfig::default() };
-        let mut hier = HierEnv::new(config, 2, MetaInputs::default()).unwrap();
-        let mut meta = ObsBuffers::new(2, hier.meta_shape());
-        hier.reset_to(&inst, 1.0, 1.0, &mut meta).unwrap();
-        hier.set_choices(&[0, 1]);
-        hier.pathfinding_obs().clone()
-    });
-    let [plain, team] = plain_and_team;
-    // Actions: 0 Up, 1 Down, 2 Left, 3 Right, 4 Wait. From (1, 0) the BFS allows Right only;
-    // the team's map also allows Up, the first step of the way around the wall above (9
-    // steps either way for a team that must not stand at (3, 0)).
-    assert_eq!(plain.mask_of(0), [false, false, false, true, true]);
-    assert_eq!(team.mask_of(0), [true, false, false, true, true]);
-    // Agent 0's cost channel (F = 9, its cell at the centre): (3, 0) is two steps closer
-    // than its own cell by the BFS, and far above it (clipped to +1) for the team.
-    let cost_at = |obs: &ObsBuffers, dx: usize| obs.grid[2 * 81 + 4 * 9 + 4 + dx];
-    assert_eq!(cost_at(&plain, 2), -2.0 / 8.0);
-    assert_eq!(cost_at(&team, 2), 1.0);
-    assert_eq!(cost_at(&team, 1), -1.0 / 8.0);
-}
-
-#[test]
-fn a_footprint_penalty_above_the_largest_is_refused() {
-    let config = EnvConfig { footprint_penalty: Some(101), ..EnvConfig::default() };
-    let err = HierEnv::new(config, 2, MetaInputs::default()).unwrap_err();
-    assert_eq!(err.to_string(), "footprint penalty 101 is above the largest, 100");
-}
-
-#[test]
-fn the_meta_observation_reads_the_multiple_and_the_place() {
+fn the_meta_observation_reads_the_place() {
     // Goals in a row; agent 2 in front (cost 4), the layout placed on it: (4, 1), (5, 1),
     // (6, 1). Agent 0 stands one row above its place, agent 1 one cell left of it.
     let inst = instance(12, 4, &[], &[c(4, 2), c(4, 1), c(6, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
-    let inputs = MetaInputs { weight: true, place: true };
+    let inputs = MetaInputs { place: true };
     let mut hier = HierEnv::new(EnvConfig::default(), 3, inputs).unwrap();
-    assert_eq!(inputs.vector_len(), 7);
-    assert_eq!(hier.meta_shape().env_vec, 7);
+    assert_eq!(inputs.vector_len(), 6);
+    assert_eq!(hier.meta_shape().env_vec, 6);
     let mut meta = ObsBuffers::new(3, hier.meta_shape());
-    hier.reset_to(&inst, 1.0, 0.5, &mut meta).unwrap();
+    hier.reset_to(&inst, 1.0, &mut meta).unwrap();
     assert_eq!(meta.order[0], 2);
     let pathfinding = hier.pathfinding_obs();
     for agent in 0..3 {
         let v = meta.vec_of(agent);
         assert_eq!(&v[..3], pathfinding.vec_of(agent), "agent {agent}: the goal vector first");
-        assert_eq!(v[3], 0.5, "agent {agent}: then the multiple");
     }
-    // Each place is one cell away (1 / (1 + 9) for a view of 9).
-    assert_eq!(&meta.vec_of(0)[4..], [0.0, -1.0, 0.1]);
-    assert_eq!(&meta.vec_of(1)[4..], [1.0, 0.0, 0.1]);
-    assert_eq!(&meta.vec_of(2)[4..], [0.0, 0.0, 0.0]);
+    // Then the place vector: each place is one cell away (1 / (1 + 9) for a view of 9).
+    assert_eq!(&meta.vec_of(0)[3..], [0.0, -1.0, 0.1]);
+    assert_eq!(&meta.vec_of(1)[3..], [1.0, 0.0, 0.1]);
+    assert_eq!(&meta.vec_of(2)[3..], [0.0, 0.0, 0.0]);
     // Without the inputs, the vector is the goal vector alone.
     let mut plain = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(3, plain.meta_shape());
-    plain.reset_to(&inst, 1.0, 0.5, &mut meta).unwrap();
+    plain.reset_to(&inst, 1.0, &mut meta).unwrap();
     assert_eq!(meta.vec_of(0), plain.pathfinding_obs().vec_of(0));
 }

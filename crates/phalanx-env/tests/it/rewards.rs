@@ -1,7 +1,7 @@
 //! The rewards of Table I, per task, on hand-made corridors.
 
 use phalanx_core::Action::{self, Left, Right, Up, Wait};
-use phalanx_env::{Clip, Env, EnvConfig, IdleScope, ObsBuffers, Task};
+use phalanx_env::{Clip, Env, EnvConfig, ObsBuffers, Task};
 
 use crate::{c, instance};
 
@@ -56,16 +56,15 @@ fn meta_rewards_weight_the_formation_loss() {
 }
 
 #[test]
-fn meta_idle_cost_charges_a_team_that_stands_or_each_agent_that_does() {
+fn meta_idle_cost_charges_each_agent_off_its_goal_that_did_not_get_closer() {
     // Agents 0 and 1 start off their goals, agent 2 on its goal.
     let inst = instance(6, 5, &[], &[c(0, 0), c(0, 2), c(5, 4)], &[c(2, 0), c(2, 2), c(5, 4)]);
     // Each agent's reward less the formation term, as (progress, idle cost).
-    let rewards = |scope: IdleScope, actions: &[Action]| {
+    let rewards = |actions: &[Action]| {
         let mut env = Env::new(EnvConfig {
             task: Task::Meta,
             formation_weight: 2.0,
             idle_cost: 0.5,
-            idle_scope: scope,
             ..EnvConfig::default()
         })
         .unwrap();
@@ -81,17 +80,12 @@ fn meta_idle_cost_charges_a_team_that_stands_or_each_agent_that_does() {
         };
         step.rewards.iter().map(|&r| split(r)).collect::<Vec<(f32, f32)>>()
     };
-    // Nobody gets closer: both scopes charge the agents off their goals.
-    for scope in [IdleScope::Team, IdleScope::Agent] {
-        assert_eq!(rewards(scope, &[Wait, Wait, Wait]), [(0.0, 0.5), (0.0, 0.5), (0.0, 0.0)]);
-    }
-    // Agent 0 gets closer, agent 1 waits: the team moved, agent 1 did not.
-    let moved = [Right, Wait, Wait];
-    assert_eq!(rewards(IdleScope::Team, &moved), [(1.0, 0.0), (0.0, 0.0), (0.0, 0.0)]);
-    assert_eq!(rewards(IdleScope::Agent, &moved), [(1.0, 0.0), (0.0, 0.5), (0.0, 0.0)]);
+    // Nobody gets closer: the agents off their goals pay.
+    assert_eq!(rewards(&[Wait, Wait, Wait]), [(0.0, 0.5), (0.0, 0.5), (0.0, 0.0)]);
+    // Agent 0 gets closer, agent 1 waits: agent 1 pays, whatever its team mate did.
+    assert_eq!(rewards(&[Right, Wait, Wait]), [(1.0, 0.0), (0.0, 0.5), (0.0, 0.0)]);
     // Moving away is idle too.
-    let away = [Right, Up, Wait];
-    assert_eq!(rewards(IdleScope::Agent, &away), [(1.0, 0.0), (0.0, 0.5), (0.0, 0.0)]);
+    assert_eq!(rewards(&[Right, Up, Wait]), [(1.0, 0.0), (0.0, 0.5), (0.0, 0.0)]);
 }
 
 #[test]

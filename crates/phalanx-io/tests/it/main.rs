@@ -15,10 +15,8 @@ pub(crate) fn test_data() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../test-data/movingai")
 }
 
-/// The shared benchmark maps in `../shared/maps/movingai` beside the checkout, when present
-/// (`PHALANX_MAPS` overrides).
-pub(crate) fn shared_maps() -> Option<PathBuf> {
-    let beside = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/maps/movingai");
-    let dir = std::env::var_os("PHALANX_MAPS").map_or(beside, PathBuf::from);
-    dir.is_dir().then_some(dir)
+/// More MovingAI benchmark maps, the readers' own fixtures (`tests/maps`: four maps the
+/// benchmark's `test-data/movingai` set does not hold).
+pub(crate) fn more_maps() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/maps")
 }

@@ -56,9 +56,9 @@ class HierarchicalPolicy:
     environment, stepped with the actions returned; it keeps its own copy of the episode and
     refuses a world that took other actions)."""
 
-    def __init__(self, weights: str | os.PathLike | None = None, multiple: float = 1.0) -> None:
+    def __init__(self, weights: str | os.PathLike | None = None) -> None:
         self.name = "hrl"
-        self._net = _phalanx.Hierarchy(None if weights is None else os.fspath(weights), multiple)
+        self._net = _phalanx.Hierarchy(None if weights is None else os.fspath(weights))
 
     def reset(self) -> None:
         self._net.reset()
@@ -80,13 +80,13 @@ class HierarchicalPolicy:
 
 
 def load_policy(
-    name: str, weights: str | os.PathLike | None = None, multiple: float = 1.0
+    name: str, weights: str | os.PathLike | None = None
 ) -> Policy | HierarchicalPolicy:
     """A shipped policy (``models/<name>``) or the one in ``weights``: ``pathfinding``,
     ``formation``, ``e2e``, ``ctce`` (the centralised baseline: it acts for the whole team at
-    once) or ``hrl`` (at ``multiple × w_f``)."""
+    once) or ``hrl`` (the hierarchy over the low level it was trained over)."""
     if name == "hrl":
-        return HierarchicalPolicy(weights, multiple)
+        return HierarchicalPolicy(weights)
     if name not in ("pathfinding", "formation", "e2e", "ctce"):
         raise _phalanx.PhalanxError(
             f"policy {name!r}: pathfinding, formation, e2e, ctce or hrl"

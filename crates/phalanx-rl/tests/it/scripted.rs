@@ -11,7 +11,7 @@ fn episode(starts: &[Cell]) -> (HierEnv, ObsBuffers) {
     let inst = Instance::new(Grid::from_fn(12, 6, |_| false), starts.to_vec(), goals.to_vec());
     let mut hier = HierEnv::new(EnvConfig::default(), 3, MetaInputs::default()).unwrap();
     let mut meta = ObsBuffers::new(3, hier.meta_shape());
-    hier.reset_to(&inst.unwrap(), 1.0, 1.0, &mut meta).unwrap();
+    hier.reset_to(&inst.unwrap(), 1.0, &mut meta).unwrap();
     (hier, meta)
 }
 

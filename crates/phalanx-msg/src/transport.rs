@@ -1,5 +1,6 @@
-//! What carries the messages: the topics and the transport trait (the loops that drive the
-//! machines over it are in `run`).
+//! What carries the messages: the topics and the transport trait. It lives here, below the
+//! learned policies, so that a transport (`phalanx-zenoh`) builds without them; the loops that
+//! drive the world and the agents over it are `phalanx_runtime::run`'s.
 
 use std::time::Duration;
 

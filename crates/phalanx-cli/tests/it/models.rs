@@ -1,0 +1,82 @@
+//! Every shipped model's `model.json` holds the configuration of the stage that made its
+//! policy file (`models/README.md` has the whole sequence): `phalanx train` accepts it as it
+//! is and trains from it for a few steps.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
+
+use crate::{check, phalanx};
+
+/// The `model.json` files under `models/` that hold a training configuration.
+fn configured(models: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut dirs = vec![models.to_path_buf()];
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.file_name().is_some_and(|n| n == "model.json") {
+                let model: Value = serde_json::from_str(&read(&path)).unwrap();
+                if model.get("config").is_some() {
+                    files.push(path);
+                }
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|err| panic!("{}: {err}", path.display()))
+}
+
+/// Whether every field of `given` is in `saved` with the same value (objects field by
+/// field), but those named in `except`.
+fn kept(given: &Value, saved: &Value, except: &[&str], at: &str) -> Result<(), String> {
+    match (given, saved) {
+        (Value::Object(given), Value::Object(saved)) => {
+            for (key, value) in given.iter().filter(|(key, _)| !except.contains(&key.as_str())) {
+                let there = saved.get(key).ok_or(format!("{at}.{key} is missing"))?;
+                kept(value, there, &[], &format!("{at}.{key}"))?;
+            }
+            Ok(())
+        }
+        _ if given == saved => Ok(()),
+        _ => Err(format!("{at}: {given} became {saved}")),
+    }
+}
+
+#[test]
+fn every_shipped_configuration_trains_as_it_is() {
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models");
+    let files = configured(&models);
+    // pathfinding, formation, meta, e2e, ctce and the six points of the front.
+    assert_eq!(files.len(), 11, "{files:?}");
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (i, file) in files.iter().enumerate() {
+        let model: Value = serde_json::from_str(&read(file)).unwrap();
+        let task = model["policy"].as_str().unwrap();
+        let mut config = model["config"].clone();
+        // A fine-tuned stage starts from the stage before it (`init_from`, a run folder of
+        // the sequence in models/README.md); where that folder is not here, the model's own
+        // policy file stands in (the same network).
+        if let Some(from) = config["init_from"].as_str() {
+            assert!(from.starts_with("runs/"), "{}: init_from {from}", file.display());
+            let own = file.with_file_name("policy.bin");
+            config["init_from"] = Value::from(own.to_str().unwrap());
+        }
+        let cfg = d.join(format!("cfg-{i}.json"));
+        std::fs::write(&cfg, serde_json::to_string_pretty(&config).unwrap()).unwrap();
+        let out = format!("run-{i}");
+        let args = ["train", task, "--config", cfg.to_str().unwrap(), "--steps", "45"];
+        check(&phalanx(d, &[&args[..], &["--out", &out]].concat()), 0);
+        let saved: Value = serde_json::from_str(&read(&d.join(&out).join("config.json"))).unwrap();
+        if let Err(why) = kept(&config, &saved, &["steps"], "config") {
+            panic!("{}: the run changed the configuration: {why}", file.display());
+        }
+    }
+}
