@@ -107,6 +107,11 @@ pub(crate) struct TrainCmd {
     /// getting closer (`env.idle_cost`; default: meta 1.5, e2e and ctce 0, Table I's reward).
     #[arg(long, value_name = "C", value_parser = util::non_negative)]
     idle_cost: Option<f64>,
+    /// Train on your own maps instead of the generated pool (`pool.maps`): MovingAI .map
+    /// files, instance files (.yaml, .scen: their map) or directories of .map files; every
+    /// episode places a formation and its translated goals on one of them (docs/learning.md).
+    #[arg(long, value_name = "PATH", num_args = 1..)]
+    maps: Vec<PathBuf>,
     /// Meta: the share S of training episodes whose team starts in a formation as wide as
     /// Table II's large maps' (`meta.wide_share`; default 0.5).
     #[arg(long, value_name = "S", value_parser = util::fraction)]
@@ -143,6 +148,9 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     }
     if let Some(multiple) = cmd.weight_multiple {
         config.meta.multiples = Multiples::Fixed { multiple };
+    }
+    if !cmd.maps.is_empty() {
+        config.pool.maps.clone_from(&cmd.maps);
     }
     if let Some(share) = cmd.wide_share {
         anyhow::ensure!(task == TrainTask::Meta, "--wide-share is for `phalanx train meta`");

@@ -109,6 +109,10 @@ pub enum EnvError {
     /// The field of view is even or below 3.
     #[error("field of view {0} must be odd and at least 3")]
     Fov(u32),
+    /// A training map cannot be read or holds no formation (the reader's message names the
+    /// file, and the line where one is at fault).
+    #[error("training map: {0}")]
+    Map(String),
     /// The instance has more agents than the occupancy grid can name.
     #[error("too many agents: {0} (at most {max})", max = MAX_AGENTS)]
     TooManyAgents(usize),

@@ -1,14 +1,16 @@
 //! Training and evaluation maps (docs/spec.md §5), kept apart by construction.
 //!
 //! A [`TrainPool`] holds 100 (by default) 32×32 maps of density 0.15 generated from seeds of
-//! the *training* stream; [`EvalMaps`] generates instances from seeds of the *evaluation*
-//! stream. Both streams derive a generator seed from an index with SplitMix64 under distinct
+//! the *training* stream, or the user's own maps (`PoolConfig::maps`); [`EvalMaps`]
+//! generates instances from seeds of the *evaluation* stream. Both streams derive a generator seed from an index with SplitMix64 under distinct
 //! domain constants, and the highest bit of a seed names its stream (0 training, 1
 //! evaluation), so no evaluation seed equals a training seed whatever the indices. The two
 //! types share no constructor and no method takes the other's indices.
 
+use std::path::{Path, PathBuf};
+
 use phalanx_core::{Cell, DistanceMap, Grid, Instance};
-use phalanx_gen::{GenConfig, random_formation, region_side};
+use phalanx_gen::{GenConfig, formation_on_map, random_formation, region_side};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -62,12 +64,20 @@ pub struct PoolConfig {
     pub fov: u32,
     /// Base seed of the training stream. Default 0.
     pub seed: u64,
+    /// The user's own maps instead of generated ones: MovingAI `.map` files, instance files
+    /// (libMultiRobotPlanning `.yaml`, MovingAI `.scen`: their map), or directories (their
+    /// `.map` files, in name order). With maps, `n_maps`, `size` and `density` are unused and
+    /// every episode places a formation and its translated goals on a map drawn uniformly
+    /// (`phalanx_gen::formation_on_map`, the benchmark's placement on real maps, from the
+    /// episode's seed of the training stream). Default none. Not written when empty.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub maps: Vec<PathBuf>,
 }
 
 impl Default for PoolConfig {
     fn default() -> PoolConfig {
         let GenConfig { size, density, fov, .. } = GenConfig::default();
-        PoolConfig { n_maps: 100, size, density, fov, seed: 0 }
+        PoolConfig { n_maps: 100, size, density, fov, seed: 0, maps: Vec::new() }
     }
 }
 
@@ -92,15 +102,31 @@ impl PoolConfig {
 pub struct TrainPool {
     config: PoolConfig,
     maps: Vec<Grid>,
+    /// The maps are the user's (`PoolConfig::maps`): formations are placed anywhere on them.
+    own: bool,
 }
 
 impl TrainPool {
-    /// Generates the pool: map `i` is the generator's map for [`train_seed`]`(seed, i)`.
+    /// Generates the pool (map `i` is the generator's map for [`train_seed`]`(seed, i)`), or
+    /// reads the user's maps.
+    ///
+    /// # Errors
+    /// If the generator refuses the settings, or a map file cannot be read, names no map,
+    /// or has no two free cells far enough apart for a formation of one agent.
     pub fn new(config: &PoolConfig) -> Result<TrainPool, EnvError> {
+        if !config.maps.is_empty() {
+            let maps = own_maps(&config.maps)?;
+            return Ok(TrainPool { config: config.clone(), maps, own: true });
+        }
         let maps = (0..config.n_maps as u64)
             .map(|i| phalanx_gen::generate(&config.map(i)).map(|inst| inst.into_parts().0))
             .collect::<Result<Vec<Grid>, _>>()?;
-        Ok(TrainPool { config: config.clone(), maps })
+        Ok(TrainPool { config: config.clone(), maps, own: false })
+    }
+
+    /// Whether the maps are the user's.
+    pub fn is_own(&self) -> bool {
+        self.own
     }
 
     /// The settings.
@@ -131,6 +157,9 @@ impl TrainPool {
     /// If the pool is empty or `n_agents` exceeds the start region's cells.
     pub fn sample(&self, n_agents: usize, rng: &mut ChaCha8Rng) -> Instance {
         assert!(!self.maps.is_empty(), "empty pool");
+        if self.own {
+            return self.place(n_agents, None, rng);
+        }
         let grid = &self.maps[rng.random_range(0..self.maps.len() as u32) as usize];
         let r = region_side(self.config.size);
         assert!(n_agents >= 1 && n_agents <= (r * r) as usize, "{n_agents} agents do not fit");
@@ -148,6 +177,9 @@ impl TrainPool {
     /// few gave free cells from which every agent reaches its goal (the pool's maps keep
     /// only their own regions free), or when the maps are not wider than the square.
     pub fn sample_wide(&self, n_agents: usize, rng: &mut ChaCha8Rng) -> Option<Instance> {
+        if self.own {
+            return Some(self.place(n_agents, Some(WIDE_SIDE), rng));
+        }
         for _ in 0..WIDE_TRIES {
             let grid = &self.maps[rng.random_range(0..self.maps.len() as u32) as usize];
             let far = grid.width().min(grid.height()).checked_sub(WIDE_SIDE).filter(|&f| f > 0)?;
@@ -184,6 +216,24 @@ impl TrainPool {
         let wide = wide_share > 0.0 && rng.random_bool(wide_share);
         let instance = if wide { self.sample_wide(n_agents, rng) } else { None };
         instance.unwrap_or_else(|| self.sample(n_agents, rng))
+    }
+
+    /// An episode on the user's maps: a map drawn uniformly, a formation of `n_agents`
+    /// drawn from a square of side `side` (default: the generator's start region for the
+    /// map's side) placed on it with its translated goals ([`formation_on_map`]).
+    ///
+    /// # Panics
+    /// If no map holds such a formation after many draws (each map was checked to hold one
+    /// of a single agent).
+    fn place(&self, n_agents: usize, side: Option<u32>, rng: &mut ChaCha8Rng) -> Instance {
+        for _ in 0..WIDE_TRIES {
+            let grid = &self.maps[rng.random_range(0..self.maps.len() as u32) as usize];
+            let r = side.unwrap_or_else(|| region_side(grid.width().max(grid.height())));
+            if let Some(instance) = formation_on_map(grid, n_agents, r, rng) {
+                return instance;
+            }
+        }
+        panic!("no formation of {n_agents} agents fits the training maps");
     }
 
     /// A formation-training episode on a map drawn uniformly (see
@@ -251,5 +301,54 @@ impl EvalMaps {
     /// Generates instance `index`.
     pub fn instance(&self, index: u64) -> Result<Instance, EnvError> {
         Ok(phalanx_gen::generate(&GenConfig { seed: self.seed(index), ..self.config.clone() })?)
+    }
+}
+
+/// The grids of the user's training maps `paths` (files, or directories of `.map` files).
+fn own_maps(paths: &[PathBuf]) -> Result<Vec<Grid>, EnvError> {
+    let mut files = Vec::new();
+    for path in paths {
+        if path.is_dir() {
+            let listing = std::fs::read_dir(path)
+                .map_err(|err| EnvError::Map(format!("{}: {err}", path.display())))?;
+            let mut maps: Vec<PathBuf> = listing
+                .filter_map(|entry| entry.ok().map(|entry| entry.path()))
+                .filter(|file| file.extension().is_some_and(|x| x == "map"))
+                .collect();
+            if maps.is_empty() {
+                return Err(EnvError::Map(format!("{} holds no .map file", path.display())));
+            }
+            maps.sort();
+            files.extend(maps);
+        } else {
+            files.push(path.clone());
+        }
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    files
+        .iter()
+        .map(|file| {
+            let grid = read_grid(file).map_err(|err| EnvError::Map(err.to_string()))?;
+            let r = region_side(grid.width().max(grid.height()));
+            let trip = |_| {
+                formation_on_map(&grid, 1, r, &mut rng).is_some_and(|i| i.starts() != i.goals())
+            };
+            if !(0..WIDE_TRIES).any(trip) {
+                return Err(EnvError::Map(format!(
+                    "{}: no two free cells far enough apart for a formation",
+                    file.display()
+                )));
+            }
+            Ok(grid)
+        })
+        .collect()
+}
+
+/// The map of a MovingAI `.map` file, or of an instance file (`.yaml`, `.scen`).
+fn read_grid(file: &Path) -> Result<Grid, phalanx_io::Error> {
+    if file.extension().is_some_and(|x| x == "map") {
+        Ok(phalanx_io::read_map(file)?.to_grid())
+    } else {
+        Ok(phalanx_io::read_instance(file, None)?.instance.into_parts().0)
     }
 }

@@ -303,9 +303,15 @@ impl TrainConfig {
         Ok(())
     }
 
-    /// The step limit of the training episodes: the configured one, else `3 × pool side`.
+    /// The step limit of the training episodes: the configured one, else `3 × pool side`;
+    /// on one's own maps (`pool.maps`) each episode's own `3 ×` its map's side, which the
+    /// environment truncates at (the collector then only cuts at `3 × 8192`, past any map).
     pub fn step_limit(&self) -> usize {
-        self.env.step_limit.unwrap_or(3 * self.pool.size) as usize
+        match self.env.step_limit {
+            Some(limit) => limit as usize,
+            None if !self.pool.maps.is_empty() => 3 * 8192,
+            None => 3 * self.pool.size as usize,
+        }
     }
 
     /// The goal-progress bonus's weight: the configured one, else `task`'s default.

@@ -311,7 +311,28 @@ fn train_bad_config_exits_2_naming_the_file() {
     assert!(stderr.contains("NaN"), "{stderr}");
     let (_, stderr) = check(&phalanx(d, &["train", "pathfinding", "--resume"]), 2);
     assert!(stderr.contains("checkpoint"), "{stderr}");
+    let (_, stderr) = check(&phalanx(d, &["train", "pathfinding", "--maps", "none.map"]), 2);
+    assert!(stderr.contains("training map") && stderr.contains("none.map"), "{stderr}");
     assert!(!d.join("run").exists(), "nothing written on bad input");
+}
+
+#[test]
+fn train_on_ones_own_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let map = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../test-data/movingai/warehouse-10-20-10-2-1.map")
+        .canonicalize()
+        .unwrap();
+    std::fs::write(d.join("small.json"), r#"{"n_envs": 2, "env": {"step_limit": 20}}"#).unwrap();
+    let args = ["train", "pathfinding", "--config", "small.json", "--steps", "40", "--out", "run"];
+    check(&phalanx(d, &[&args[..], &["--maps", map.to_str().unwrap()]].concat()), 0);
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("run/config.json")).unwrap()).unwrap();
+    assert_eq!(saved["pool"]["maps"][0], map.to_str().unwrap(), "{saved}");
+    // The run resumes on the same maps (its saved config).
+    let args = ["train", "pathfinding", "--resume", "--steps", "60", "--out", "run"];
+    check(&phalanx(d, &args), 0);
 }
 
 #[test]

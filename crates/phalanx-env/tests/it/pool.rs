@@ -107,3 +107,60 @@ fn formation_episodes_see_a_neighbour_and_end_in_formation() {
         (0..trajectory.horizon()).all(|t| formation_loss(trajectory.at(t), inst.goals()) > 0.0)
     );
 }
+
+/// The checked-in MovingAI maps (`test-data/movingai`).
+fn movingai(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../test-data/movingai").join(name)
+}
+
+#[test]
+fn a_pool_of_ones_own_maps_places_formations_on_them() {
+    let warehouse = movingai("warehouse-10-20-10-2-1.map");
+    let room = movingai("room-64-64-8.map");
+    let config = PoolConfig { maps: vec![warehouse, room], ..PoolConfig::default() };
+    let pool = TrainPool::new(&config).unwrap();
+    assert!(pool.is_own());
+    assert_eq!(pool.len(), 2);
+    let sides: Vec<(u32, u32)> =
+        (0..2).map(|i| (pool.map(i).width(), pool.map(i).height())).collect();
+    assert_eq!(sides, [(161, 63), (64, 64)]);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut seen = [false; 2];
+    for _ in 0..40 {
+        for inst in [pool.sample(4, &mut rng), pool.sample_episode(4, 1.0, &mut rng)] {
+            // Goals are the formation translated; every agent reaches its goal on the map.
+            assert_eq!(formation_loss(inst.starts(), inst.goals()), 0.0);
+            let on = (0..2).find(|&i| inst.grid() == pool.map(i)).expect("one of the maps");
+            seen[on] = true;
+            for (&s, &g) in inst.starts().iter().zip(inst.goals()) {
+                assert!(phalanx_core::DistanceMap::bfs(inst.grid(), g).get(s).is_some());
+            }
+        }
+    }
+    assert_eq!(seen, [true, true], "both maps are drawn");
+    // The same seed, the same episode.
+    let again = TrainPool::new(&config).unwrap();
+    let draw = |pool: &TrainPool| pool.sample(3, &mut ChaCha8Rng::seed_from_u64(9));
+    assert_eq!(draw(&pool), draw(&again));
+    // A directory holds its .map files.
+    let dir = PoolConfig { maps: vec![movingai("")], ..PoolConfig::default() };
+    assert_eq!(TrainPool::new(&dir).unwrap().len(), 9);
+}
+
+#[test]
+fn own_maps_that_cannot_be_read_or_hold_no_formation_are_refused_naming_the_file() {
+    let err = |maps: Vec<std::path::PathBuf>| {
+        TrainPool::new(&PoolConfig { maps, ..PoolConfig::default() }).unwrap_err().to_string()
+    };
+    let missing = movingai("no-such.map");
+    let why = err(vec![missing]);
+    assert!(why.starts_with("training map:") && why.contains("no-such.map"), "{why}");
+    let dir = tempfile::tempdir().unwrap();
+    let walled = dir.path().join("walled.map");
+    std::fs::write(&walled, "type octile\nheight 2\nwidth 2\nmap\n.@\n@@\n").unwrap();
+    let why = err(vec![walled]);
+    assert!(why.contains("walled.map") && why.contains("no two free cells"), "{why}");
+    let empty = tempfile::tempdir().unwrap();
+    let why = err(vec![empty.path().to_path_buf()]);
+    assert!(why.contains("holds no .map file"), "{why}");
+}
