@@ -190,6 +190,10 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         ));
         config.agent_counts = learner.agent_counts().to_vec();
     }
+    if !config.pool.maps.is_empty() {
+        // One's own maps are read and checked before anything is written.
+        phalanx_env::TrainPool::new(&config.pool).context("the training pool")?;
+    }
     util::written(fs::create_dir_all(dir), dir)?;
     let building = || format!("building the {} environment", task.name());
     if task == TrainTask::Meta {
