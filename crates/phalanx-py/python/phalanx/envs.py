@@ -218,6 +218,8 @@ class ParallelEnv(_Shared, _ParallelEnv):
         # One call: the world reads the actions, steps, writes the observations and builds
         # the rewards, flags and infos dicts (an agent left out of ``actions`` waits).
         world = self._core.world
+        if type(actions) is not dict:
+            actions = dict(actions)
         out = world.step_parallel(actions, self._core.obs)
         if world.done:
             self.agents = []
