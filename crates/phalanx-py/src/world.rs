@@ -18,7 +18,7 @@ use phalanx_gen::GenConfig;
 use phalanx_render::{Options, Scene};
 use pyo3::intern;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyFloat, PyInt, PyString, PyTuple};
+use pyo3::types::{PyDict, PyInt, PyString, PyTuple};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -195,6 +195,12 @@ pub(crate) struct World {
     raw_actions: Vec<i64>,
     /// `agent_0 … agent_{N-1}`, the keys of the parallel form's dicts.
     names: Vec<Py<PyString>>,
+    /// Every name to `False`, every name to `True`: the flags dicts of a step are copies.
+    flags: [Py<PyDict>; 2],
+    /// An agent's info of the step being built (its `L_f` set per step, flags `False`):
+    /// each agent's info is a copy with its flags set (copying a small dict is cheaper
+    /// than building it).
+    info: Py<PyDict>,
     /// Whether a message has been written since the last observation (they are zeroed then).
     message_written: bool,
     /// `[N, 4, F, F]`.
@@ -259,6 +265,20 @@ impl World {
         let env = Env::new(spec.env_config.clone()).map_err(|err| error(&err))?;
         let n = spec.n_agents;
         let f = fov as usize;
+        let names: Vec<_> =
+            (0..n).map(|i| PyString::new(py, &format!("agent_{i}")).unbind()).collect();
+        let flag_dict = |value: bool| -> PyResult<Py<PyDict>> {
+            let dict = PyDict::new(py);
+            for name in &names {
+                dict.set_item(name.bind(py), value)?;
+            }
+            Ok(dict.unbind())
+        };
+        let flags = [flag_dict(false)?, flag_dict(true)?];
+        let info = PyDict::new(py);
+        info.set_item(intern!(py, "formation_loss"), 0.0)?;
+        info.set_item(intern!(py, "cancelled"), false)?;
+        info.set_item(intern!(py, "on_goal"), false)?;
         Ok(World {
             env,
             spec,
@@ -266,7 +286,9 @@ impl World {
             trajectory: None,
             actions: vec![Action::Wait; n],
             raw_actions: vec![WAIT; n],
-            names: (0..n).map(|i| PyString::new(py, &format!("agent_{i}")).unbind()).collect(),
+            names,
+            flags,
+            info: info.unbind(),
             message_written: false,
             grid: PyArray4::zeros(py, [n, CHANNELS, f, f], false).unbind(),
             vector: PyArray2::zeros(py, [n, VECTOR_LEN], false).unbind(),
@@ -406,19 +428,21 @@ impl World {
         let step = self.env.step(&self.actions);
         let (terminated, truncated) = (step.terminated, step.truncated);
         let rewards = PyDict::new(py);
-        let terminations = PyDict::new(py);
-        let truncations = PyDict::new(py);
+        let terminations = self.flags[usize::from(terminated)].bind(py).copy()?;
+        let truncations = self.flags[usize::from(truncated)].bind(py).copy()?;
         let infos = PyDict::new(py);
-        let formation_loss = PyFloat::new(py, step.info.formation_loss);
+        let template = self.info.bind(py);
+        template.set_item(intern!(py, "formation_loss"), step.info.formation_loss)?;
         for (agent, name) in self.names.iter().enumerate() {
             let name = name.bind(py);
             rewards.set_item(name, f64::from(step.rewards[agent]))?;
-            terminations.set_item(name, terminated)?;
-            truncations.set_item(name, truncated)?;
-            let info = PyDict::new(py);
-            info.set_item(intern!(py, "formation_loss"), &formation_loss)?;
-            info.set_item(intern!(py, "cancelled"), step.info.cancelled[agent])?;
-            info.set_item(intern!(py, "on_goal"), step.info.on_goal[agent])?;
+            let info = template.copy()?;
+            if step.info.cancelled[agent] {
+                info.set_item(intern!(py, "cancelled"), true)?;
+            }
+            if step.info.on_goal[agent] {
+                info.set_item(intern!(py, "on_goal"), true)?;
+            }
             infos.set_item(name, info)?;
         }
         fill(py, &self.rewards, |r| r.copy_from_slice(step.rewards));

@@ -204,6 +204,7 @@ class ParallelEnv(_Shared, _ParallelEnv):
     def __init__(self, **settings: Any) -> None:
         self._setup(**settings)
         self.agents: list[str] = []
+        self._step_parallel = self._core.world.step_parallel
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         self._core.reset(seed)
@@ -217,11 +218,10 @@ class ParallelEnv(_Shared, _ParallelEnv):
             raise _phalanx.PhalanxError("the episode has ended: reset first")
         # One call: the world reads the actions, steps, writes the observations and builds
         # the rewards, flags and infos dicts (an agent left out of ``actions`` waits).
-        world = self._core.world
         if type(actions) is not dict:
             actions = dict(actions)
-        out = world.step_parallel(actions, self._core.obs)
-        if world.done:
+        out = self._step_parallel(actions, self._core.obs)
+        if self._core.world.done:
             self.agents = []
         return out
 
