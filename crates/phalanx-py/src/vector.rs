@@ -23,8 +23,8 @@ use numpy::{
     PyArray1, PyArray2, PyArray3, PyArray5, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
 };
 use phalanx_core::{Action, Instance};
-use phalanx_env::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use phalanx_env::Env;
+use phalanx_env::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use pyo3::prelude::*;
 
 use crate::toolkit::PyInstance;
@@ -46,9 +46,10 @@ struct Slot {
 impl Slot {
     /// Starts the episode of `seed` and writes its first observation.
     fn start(&mut self, spec: &Spec, seed: u64, obs: ObsRows<'_>) -> Result<(), String> {
-        let instance =
-            spec.episode(seed).map_err(|message| format!("seed {seed}: {message}"))?;
-        self.env.reset(&instance).map_err(|err| format!("seed {seed}: {}", crate::message(&err)))?;
+        let instance = spec.episode(seed).map_err(|message| format!("seed {seed}: {message}"))?;
+        self.env
+            .reset(&instance)
+            .map_err(|err| format!("seed {seed}: {}", crate::message(&err)))?;
         self.instance = Some(instance);
         self.seed = seed;
         observe(&mut self.env, spec.task, obs);
@@ -444,7 +445,12 @@ impl VecWorld {
 
 /// Steps one environment (actions already checked), writes its outputs and, when its episode
 /// ended, its last observation and the first of its next episode.
-fn step_one(spec: &Spec, slot: &mut Slot, actions: &[i64], out: StepRows<'_>) -> Result<(), String> {
+fn step_one(
+    spec: &Spec,
+    slot: &mut Slot,
+    actions: &[i64],
+    out: StepRows<'_>,
+) -> Result<(), String> {
     for (action, &index) in slot.actions.iter_mut().zip(actions) {
         *action = Action::from_index(index as usize).expect("checked action indices");
     }

@@ -105,7 +105,8 @@ impl Spec {
             Source::Fixed(named) => Ok(named.instance.clone()),
             Source::Generated(config) => {
                 let config = GenConfig { seed, ..config.clone() };
-                let generated = phalanx_gen::generate(&config).map_err(|err| crate::message(&err))?;
+                let generated =
+                    phalanx_gen::generate(&config).map_err(|err| crate::message(&err))?;
                 if self.task == Task::Formation {
                     let mut rng = ChaCha8Rng::seed_from_u64(seed);
                     formation_instance(generated.grid(), config.n_agents, config.fov, &mut rng)
