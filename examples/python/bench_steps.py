@@ -14,7 +14,7 @@ prints each round and the medians and median ratios.
     # the comparison, interleaved
     python bench_steps.py compare --phalanx-python venv/bin/python \\
         --pogema-python venv-pogema/bin/python --phalanx-bin target/release/phalanx \\
-        --num-envs 256 --vector-threads 1,2
+        --num-envs 64,256 --vector-threads 1,2
 """
 
 from __future__ import annotations
@@ -126,8 +126,10 @@ def main() -> None:
     both.add_argument("--phalanx-bin", required=True)
     both.add_argument("--rounds", type=int, default=5)
     both.add_argument("--steps", type=int, default=20000)
-    both.add_argument("--num-envs", type=int, default=256, help="environments of the vector")
-    both.add_argument("--vector-steps", type=int, default=1000, help="steps of the vector")
+    both.add_argument("--num-envs", default="256",
+                      help="comma-separated environment counts, one vector measurement each")
+    both.add_argument("--vector-steps", type=int, default=1000,
+                      help="steps of a vector of 256 environments (scaled to others)")
     both.add_argument("--vector-threads", default="1",
                       help="comma-separated thread counts, one vector measurement each")
     both.add_argument("--settings", default=None,
@@ -149,16 +151,18 @@ def main() -> None:
             for a, s, d in (item.split(":") for item in args.settings.split(","))
         ]
     threads = [int(t) for t in args.vector_threads.split(",") if t]
+    num_envs = [int(n) for n in args.num_envs.split(",") if n]
     for setting in settings:
         flags = ["--agents", str(setting["agents"]), "--size", str(setting["size"]),
                  "--density", str(setting["density"])]
         runs = [("phalanx", args.phalanx_python, ["--steps", str(args.steps)]),
                 ("pogema", args.pogema_python, ["--steps", str(args.steps)])]
+        # Every vector measurement makes about the same number of agent-steps.
         runs += [
-            (f"vector_{t}t", args.phalanx_python,
-             ["--backend", "vector", "--steps", str(args.vector_steps),
-              "--num-envs", str(args.num_envs), "--threads", str(t)])
-            for t in threads
+            (f"vector_{n}x{t}t", args.phalanx_python,
+             ["--backend", "vector", "--steps", str(max(1, args.vector_steps * 256 // n)),
+              "--num-envs", str(n), "--threads", str(t)])
+            for n in num_envs for t in threads
         ]
         rates: dict[str, list[float]] = {name: [] for name, _, _ in runs}
         rates["sim"] = []
@@ -180,7 +184,6 @@ def main() -> None:
         print(json.dumps({
             **setting,
             "rounds": args.rounds,
-            "num_envs": args.num_envs,
             "median_agent_steps_per_s": {k: statistics.median(v) for k, v in rates.items()},
             "median_ratio_over_pogema": {
                 k: median_ratio(k, "pogema") for k in rates if k != "pogema"

@@ -418,8 +418,11 @@ impl World {
     ) -> PyResult<Bound<'py, PyTuple>> {
         self.check_running()?;
         self.raw_actions.fill(WAIT);
-        for (name, action) in actions.iter() {
-            let agent = self.agent_index(&name).ok_or_else(|| {
+        for (k, (name, action)) in actions.iter().enumerate() {
+            // The keys are mostly this world's own name objects, in agent order.
+            let same = self.names.get(k).is_some_and(|known| name.is(known.bind(py)));
+            let agent = if same { Some(k) } else { self.agent_index(&name) };
+            let agent = agent.ok_or_else(|| {
                 let name = name.repr().map_or_else(|_| "?".to_owned(), |r| r.to_string());
                 bad(format!("unknown agent {name}"))
             })?;
