@@ -1,7 +1,9 @@
 //! The environment for Python: one [`Env`] whose observations are written straight into
 //! NumPy arrays that Python holds (no copy per step), for the parallel form (every agent
 //! observes, then the joint action) and the turn-by-turn form (agents choose in leader
-//! order, each seeing the actions chosen before it as its message).
+//! order, each seeing the actions chosen before it as its message). The parallel form's step
+//! is one call (`step_parallel`): it reads the actions dict and builds PettingZoo's rewards,
+//! flags and infos dicts here, in Rust.
 //!
 //! Arrays, allocated once (the agent count of an environment never changes):
 //! `grid [N, 4, F, F]` f32 (obstacles, agents, cost, formation), `vector [N, 3]` f32 (the goal
@@ -224,7 +226,7 @@ pub(crate) struct World {
     rewards: Py<PyArray1<f32>>,
 }
 
-pub(crate) fn task_of(name: &str) -> PyResult<Task> {
+fn task_of(name: &str) -> PyResult<Task> {
     match name {
         "pathfinding" => Ok(Task::PathFinding),
         "formation" => Ok(Task::Formation),

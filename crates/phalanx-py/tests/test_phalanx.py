@@ -392,3 +392,15 @@ def test_vector_env_api_arrays_seeds_threads_and_bad_input():
         phalanx.vector_env(0)
     with pytest.raises(phalanx.PhalanxError, match="task"):
         phalanx.vector_env(2, task="walk")
+
+
+def test_the_ppo_example_runs_on_the_vector():
+    import sys
+
+    script = ROOT / "examples" / "python" / "ppo_vector.py"
+    out = subprocess.run(
+        [sys.executable, str(script), "--iterations", "2", "--num-envs", "8", "--steps", "16",
+         "--size", "10", "--minibatch", "128"],
+        check=True, capture_output=True, text=True, timeout=120,
+    )
+    assert "iteration 2: team return" in out.stdout
