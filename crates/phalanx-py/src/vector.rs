@@ -351,11 +351,21 @@ impl VecWorld {
         })
         .map_err(bad)?;
         drop((grid, vector, mask, rank, seed));
-        for array in [&self.terminated, &self.truncated, &self.cancelled, &self.on_goal] {
-            rows!(py, array).as_slice_mut().expect("contiguous").fill(false);
+        // No step yet: no reward, flag or cancelled move; the episodes' first `L_f` and goals.
+        for array in [&self.terminated, &self.truncated, &self.cancelled] {
+            slice(&mut rows!(py, array)).fill(false);
         }
-        rows!(py, self.rewards).as_slice_mut().expect("contiguous").fill(0.0);
-        rows!(py, self.ended).as_slice_mut().expect("contiguous").fill(false);
+        slice(&mut rows!(py, self.rewards)).fill(0.0);
+        slice(&mut rows!(py, self.ended)).fill(false);
+        let (mut on_goal, mut formation_loss) =
+            (rows!(py, self.on_goal), rows!(py, self.formation_loss));
+        let on_goal = slice(&mut on_goal).chunks_exact_mut(n);
+        for ((slot, on_goal), loss) in
+            self.slots.iter().zip(on_goal).zip(slice(&mut formation_loss))
+        {
+            on_goal.copy_from_slice(slot.env.on_goal());
+            *loss = slot.env.formation_loss();
+        }
         Ok(())
     }
 

@@ -320,6 +320,8 @@ def test_vector_env_plays_as_single_envs_seeded_by_the_documented_rule(task):
     for i, single in enumerate(singles):
         assert_rows_equal(obs, i, single_obs[i], "reset")
         assert vec.world.instance(i).starts == single.world.instance.starts
+        assert infos["formation_loss"][i] == single.world.formation_loss
+        assert infos["on_goal"][i].tolist() == single.world.on_goal
     rng = np.random.default_rng(5)
     ended = 0
     seeds = [seed + i * 2**32 for i in range(num_envs)]

@@ -131,7 +131,8 @@ class VectorEnv(_VectorEnv):
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Starts an episode in every environment: ``seed`` an int (environment ``i`` plays
         ``seed + i * 2**32``), one seed per environment, or ``None`` (each environment's next
-        seed); returns the observations and the infos of ``step``."""
+        seed); returns the observations and the infos of ``step`` (no step yet: no reward,
+        flag or cancelled move; the episodes' first ``formation_loss`` and ``on_goal``)."""
         if seed is None:
             seeds = self._next_seeds
             if seeds is None and not self._started:
