@@ -180,8 +180,9 @@ def main() -> None:
             truncated = truncations[:, 0] & ended
             if truncated.any():
                 # Bootstrap the cut episodes from their last observation.
-                final = features(infos["final_obs"])[truncated]
-                _, _, final_value = net.forward(final, infos["final_obs"]["action_mask"][truncated].astype(bool))
+                final = infos["final_obs"]
+                final_mask = final["action_mask"][truncated].astype(bool)
+                _, _, final_value = net.forward(features(final)[truncated], final_mask)
                 reward[truncated] += args.gamma * final_value
             buf["reward"][t], buf["done"][t] = reward, ended[:, None]
             for i in np.flatnonzero(ended):

@@ -305,7 +305,9 @@ VECTOR = {"size": 10, "density": 0.15, "agents": 3}
 def assert_rows_equal(vector_obs, row, single_obs, what):
     for agent, name in enumerate(sorted(single_obs, key=lambda n: int(n.split("_")[1]))):
         for key, value in single_obs[name].items():
-            np.testing.assert_array_equal(vector_obs[key][row, agent], value, err_msg=f"{what} {key}")
+            np.testing.assert_array_equal(
+                vector_obs[key][row, agent], value, err_msg=f"{what} {key}"
+            )
 
 
 @pytest.mark.parametrize("task", ["pathfinding", "formation", "meta"])
