@@ -1,5 +1,6 @@
 //! `phalanx._phalanx`, the extension module under the Python package `phalanx`: the
 //! simulation environment with its observation buffers as NumPy arrays ([`world::World`]),
+//! many of them stepped in one call ([`vector::VecWorld`]),
 //! instances, the planners and the validator ([`toolkit`]) and the shipped policies
 //! ([`policy`]). The PettingZoo classes are the thin pure-Python layer in `python/phalanx`.
 //!
@@ -10,6 +11,7 @@ use pyo3::prelude::*;
 
 mod policy;
 mod toolkit;
+mod vector;
 mod world;
 
 pyo3::create_exception!(
@@ -21,6 +23,11 @@ pyo3::create_exception!(
 
 /// The Python exception of `err`, its message the error and its causes joined by ": ".
 pub(crate) fn error(err: &(dyn std::error::Error + 'static)) -> PyErr {
+    PhalanxError::new_err(message(err))
+}
+
+/// The message of `err` with its causes, joined by ": ".
+pub(crate) fn message(err: &(dyn std::error::Error + 'static)) -> String {
     let mut message = err.to_string();
     let mut source = err.source();
     while let Some(cause) = source {
@@ -28,7 +35,7 @@ pub(crate) fn error(err: &(dyn std::error::Error + 'static)) -> PyErr {
         message.push_str(&cause.to_string());
         source = cause.source();
     }
-    PhalanxError::new_err(message)
+    message
 }
 
 /// A `PhalanxError` with `message`.
@@ -40,6 +47,7 @@ pub(crate) fn bad(message: impl Into<String>) -> PyErr {
 fn _phalanx(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("PhalanxError", m.py().get_type::<PhalanxError>())?;
     m.add_class::<world::World>()?;
+    m.add_class::<vector::VecWorld>()?;
     m.add_class::<toolkit::PyInstance>()?;
     m.add_class::<policy::PyPolicy>()?;
     m.add_class::<policy::PyHierarchy>()?;

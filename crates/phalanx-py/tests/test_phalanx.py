@@ -279,3 +279,132 @@ def test_the_learned_solver_keeps_the_rollout_asked_for(instance_file):
     assert tightest.metrics["makespan"] >= fastest.metrics["makespan"]
     with pytest.raises(ValueError, match="keep \"best\": one of fastest, tightest"):
         phalanx.solve(instance, "hrl", keep="best")
+
+
+def test_the_parallel_step_reads_actions_as_python_did():
+    env = phalanx.parallel_env(seed=3)
+    env.reset()
+    # An agent left out waits; NumPy integers, floats and numeric strings go through int().
+    obs, rewards, terminations, truncations, infos = env.step({"agent_1": np.int32(3)})
+    assert set(rewards) == set(terminations) == set(truncations) == set(infos) == set(env.agents)
+    assert all(type(r) is float for r in rewards.values())
+    assert infos["agent_0"].keys() == {"formation_loss", "cancelled", "on_goal"}
+    env.step({"agent_0": 2.0, "agent_2": "1"})
+    assert env.world.t == 2
+    for name in ("agent_3", "agent_01", "agent_-1", 0):
+        with pytest.raises(phalanx.PhalanxError, match="unknown agent"):
+            env.step({name: 1})
+    with pytest.raises(phalanx.PhalanxError, match="agent 2: action -1 is not one of 0..5"):
+        env.step({"agent_2": -1})
+    assert env.world.t == 2
+
+
+VECTOR = {"size": 10, "density": 0.15, "agents": 3}
+
+
+def assert_rows_equal(vector_obs, row, single_obs, what):
+    for agent, name in enumerate(sorted(single_obs, key=lambda n: int(n.split("_")[1]))):
+        for key, value in single_obs[name].items():
+            np.testing.assert_array_equal(
+                vector_obs[key][row, agent], value, err_msg=f"{what} {key}"
+            )
+
+
+@pytest.mark.parametrize("task", ["pathfinding", "formation", "meta"])
+def test_vector_env_plays_as_single_envs_seeded_by_the_documented_rule(task):
+    num_envs, seed = 3, 21
+    vec = phalanx.vector_env(num_envs, task=task, seed=seed, **VECTOR)
+    singles = [
+        phalanx.parallel_env(task=task, seed=seed + i * 2**32, **VECTOR) for i in range(num_envs)
+    ]
+    obs, infos = vec.reset()
+    single_obs = [s.reset()[0] for s in singles]
+    for i, single in enumerate(singles):
+        assert_rows_equal(obs, i, single_obs[i], "reset")
+        assert vec.world.instance(i).starts == single.world.instance.starts
+        assert infos["formation_loss"][i] == single.world.formation_loss
+        assert infos["on_goal"][i].tolist() == single.world.on_goal
+    rng = np.random.default_rng(5)
+    ended = 0
+    seeds = [seed + i * 2**32 for i in range(num_envs)]
+    for t in range(80):
+        actions = rng.integers(0, 5, size=(num_envs, 3))
+        obs, rewards, terminations, truncations, infos = vec.step(actions)
+        for i, single in enumerate(singles):
+            o, r, term, trunc, info = single.step(dict(zip(single.agents, actions[i].tolist())))
+            names = list(r)
+            np.testing.assert_array_equal(rewards[i], [r[n] for n in names])
+            assert terminations[i].tolist() == [term[n] for n in names]
+            assert truncations[i].tolist() == [trunc[n] for n in names]
+            assert infos["cancelled"][i].tolist() == [info[n]["cancelled"] for n in names]
+            assert infos["on_goal"][i].tolist() == [info[n]["on_goal"] for n in names]
+            assert infos["formation_loss"][i] == info[names[0]]["formation_loss"]
+            assert infos["_final_obs"][i] == (not single.agents)
+            if not single.agents:
+                ended += 1
+                seeds[i] += 1
+                assert_rows_equal(infos["final_obs"], i, o, f"step {t} final")
+                o, _ = single.reset()
+            assert_rows_equal(obs, i, o, f"step {t}")
+            assert infos["seed"][i] == seeds[i]
+    assert ended >= num_envs, "no episode ended: the auto-reset was not tested"
+
+
+def test_vector_env_api_arrays_seeds_threads_and_bad_input():
+    import gymnasium
+
+    vec = phalanx.vector_env(4, num_threads=2, **VECTOR)
+    assert isinstance(vec, gymnasium.vector.VectorEnv)
+    assert vec.metadata["autoreset_mode"] == gymnasium.vector.AutoresetMode.SAME_STEP
+    with pytest.raises(phalanx.PhalanxError, match="reset first"):
+        vec.step(np.zeros((4, 3), np.int64))
+    obs, infos = vec.reset(seed=[7, 8, 9, 10])
+    assert infos["seed"].tolist() == [7, 8, 9, 10]
+    assert vec.observation_space.contains(obs) and obs["cost"].shape == (4, 3, 9, 9)
+    single, _ = phalanx.parallel_env(seed=9, **VECTOR).reset()
+    assert_rows_equal(obs, 2, single, "seed list")
+    first = obs["agents"]
+    out = vec.step(vec.action_space.sample().astype(np.int32))  # any integer dtype
+    assert out[0]["agents"] is first and out[1].shape == (4, 3) and out[1].dtype == np.float32
+    assert not np.shares_memory(out[0]["agents"], out[4]["final_obs"]["agents"])
+    with pytest.raises(ValueError):
+        out[1][0, 0] = 1.0
+    # The same seed plays the same on one thread and on two.
+    one = phalanx.vector_env(4, num_threads=1, seed=5, **VECTOR)
+    two = phalanx.vector_env(4, num_threads=2, seed=5, **VECTOR)
+    one.reset(), two.reset()
+    rng = np.random.default_rng(1)
+    for _ in range(40):
+        actions = rng.integers(0, 5, size=(4, 3))
+        a, b = one.step(actions), two.step(actions)
+        for key in a[0]:
+            np.testing.assert_array_equal(a[0][key], b[0][key])
+        np.testing.assert_array_equal(a[1], b[1])
+    # A reset without a seed goes on with each environment's next seed.
+    seeds = one.step(np.full((4, 3), 4))[4]["seed"].copy()
+    _, infos = one.reset()
+    assert infos["seed"].tolist() == [s + 1 for s in seeds]
+    with pytest.raises(phalanx.PhalanxError, match=r"actions of shape \[4, 2\]"):
+        vec.step(np.zeros((4, 2), np.int64))
+    with pytest.raises(phalanx.PhalanxError, match="env 1, agent 2: action 5 is not one of 0..5"):
+        vec.step(np.array([[0, 0, 0], [0, 0, 5], [0, 0, 0], [9, 0, 0]]))
+    with pytest.raises(phalanx.PhalanxError, match="dtype float64"):
+        vec.step(np.zeros((4, 3)))
+    with pytest.raises(phalanx.PhalanxError, match="3 seeds for 4 environments"):
+        vec.reset(seed=[1, 2, 3])
+    with pytest.raises(phalanx.PhalanxError, match="num_envs 0"):
+        phalanx.vector_env(0)
+    with pytest.raises(phalanx.PhalanxError, match="task"):
+        phalanx.vector_env(2, task="walk")
+
+
+def test_the_ppo_example_runs_on_the_vector():
+    import sys
+
+    script = ROOT / "examples" / "python" / "ppo_vector.py"
+    out = subprocess.run(
+        [sys.executable, str(script), "--iterations", "2", "--num-envs", "8", "--steps", "16",
+         "--size", "10", "--minibatch", "128"],
+        check=True, capture_output=True, text=True, timeout=120,
+    )
+    assert "iteration 2: team return" in out.stdout

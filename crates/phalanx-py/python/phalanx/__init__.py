@@ -2,6 +2,8 @@
 
 - ``parallel_env(...)``: a PettingZoo ``ParallelEnv`` (every agent observes, then the joint
   action);
+- ``vector_env(num_envs, ...)``: a ``gymnasium.vector.VectorEnv`` of ``num_envs`` teams
+  stepped in one call in Rust, every output a NumPy array ``(num_envs, agents, ...)``;
 - ``env(...)``: the turn-by-turn ``AECEnv`` in leader order, where each agent sees the
   actions already chosen this step by those before it (the paper's communication scheme);
 - ``generate``, ``read_instance``, ``solve``, ``validate``: instances, every planner and
@@ -18,6 +20,7 @@ from phalanx._phalanx import PhalanxError, default_formation_weight
 from phalanx.envs import AECEnv, ParallelEnv, env, parallel_env
 from phalanx.policies import load_policy
 from phalanx.toolkit import Instance, Solution, generate, read_instance, solve, validate
+from phalanx.vector import VectorEnv, vector_env
 
 __all__ = [
     "AECEnv",
@@ -25,6 +28,7 @@ __all__ = [
     "ParallelEnv",
     "PhalanxError",
     "Solution",
+    "VectorEnv",
     "default_formation_weight",
     "env",
     "generate",
@@ -33,4 +37,5 @@ __all__ = [
     "read_instance",
     "solve",
     "validate",
+    "vector_env",
 ]

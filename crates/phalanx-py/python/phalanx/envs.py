@@ -87,7 +87,8 @@ class _Core:
         self.next_seed = None if seed is None else seed & _SEED_MASK
         n = self.world.n_agents
         f = self.world.fov
-        self.names = [f"agent_{i}" for i in range(n)]
+        # The world's own name objects: the keys of the dicts its parallel step builds.
+        self.names = list(self.world.agent_names)
         grid, vector = self.world.grid, self.world.vector
         mask, message, rank = self.world.action_mask, self.world.message, self.world.rank
         self.rewards = self.world.rewards
@@ -203,8 +204,7 @@ class ParallelEnv(_Shared, _ParallelEnv):
     def __init__(self, **settings: Any) -> None:
         self._setup(**settings)
         self.agents: list[str] = []
-        self._index = {name: i for i, name in enumerate(self.possible_agents)}
-        self._actions = [len(ACTIONS) - 1] * len(self.possible_agents)
+        self._step_parallel = self._core.world.step_parallel
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         self._core.reset(seed)
@@ -216,23 +216,14 @@ class ParallelEnv(_Shared, _ParallelEnv):
     def step(self, actions: dict[str, int]):
         if not self.agents:
             raise _phalanx.PhalanxError("the episode has ended: reset first")
-        joint = self._actions
-        for i in range(len(joint)):
-            joint[i] = len(ACTIONS) - 1
-        for name, action in actions.items():
-            if name not in self._index:
-                raise _phalanx.PhalanxError(f"unknown agent {name!r}")
-            joint[self._index[name]] = int(action)
-        terminated, truncated, formation_loss, cancelled = self._core.world.step(joint)
-        names = self.agents
-        rewards = dict(zip(names, self._core.rewards.tolist()))
-        terminations = dict.fromkeys(names, terminated)
-        truncations = dict.fromkeys(names, truncated and not terminated)
-        infos = self._core.info(formation_loss, cancelled)
-        obs = dict(self._core.obs)
-        if terminated or truncated:
+        # One call: the world reads the actions, steps, writes the observations and builds
+        # the rewards, flags and infos dicts (an agent left out of ``actions`` waits).
+        if type(actions) is not dict:
+            actions = dict(actions)
+        out = self._step_parallel(actions, self._core.obs)
+        if self._core.world.done:
             self.agents = []
-        return obs, rewards, terminations, truncations, infos
+        return out
 
     def state(self) -> np.ndarray:
         """The agents' cells, ``[N, 2]`` ``(x, y)``."""
