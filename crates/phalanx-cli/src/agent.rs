@@ -6,7 +6,6 @@
 //! agents before it in the meta order chose); nothing else leaves it. It ends with the
 //! episode (exit 0), or when the world is gone or silent (exit 6).
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -16,7 +15,7 @@ use phalanx_zenoh::{
     DEFAULT_AGENT_ENDPOINT, DEFAULT_PREFIX, DEFAULT_WORLD_ENDPOINT, Endpoints, Role, ZenohTransport,
 };
 
-use crate::run::{Team, TeamPolicy};
+use crate::run::TeamArgs;
 use crate::util;
 
 /// Arguments of `phalanx agent`.
@@ -25,13 +24,8 @@ pub(crate) struct AgentCmd {
     /// This agent's index in the instance (0-based).
     #[arg(long)]
     id: u16,
-    /// The policy it runs (the world's --policy).
-    #[arg(long, value_enum, default_value = "pathfinding")]
-    policy: TeamPolicy,
-    /// The policy's directory or file (hrl: the meta policy's; default: the shipped
-    /// models/pathfinding or models/meta).
-    #[arg(long, value_name = "DIR")]
-    weights: Option<PathBuf>,
+    #[command(flatten)]
+    team: TeamArgs,
     /// The world's Zenoh endpoint.
     #[arg(long, default_value = DEFAULT_WORLD_ENDPOINT, value_name = "ENDPOINT")]
     connect: String,
@@ -51,8 +45,8 @@ pub(crate) struct AgentCmd {
 
 /// Runs `phalanx agent`.
 pub(crate) fn run(cmd: AgentCmd) -> anyhow::Result<ExitCode> {
-    let team = Team::load(cmd.policy, cmd.weights.as_deref(), usize::from(cmd.id) + 1)
-        .with_context(|| format!("agent {}", cmd.id))?;
+    let team =
+        cmd.team.load(usize::from(cmd.id) + 1).with_context(|| format!("agent {}", cmd.id))?;
     let mut endpoints = Endpoints::agent(&cmd.listen, &cmd.connect);
     endpoints.prefix = cmd.prefix.clone();
     let mut transport = ZenohTransport::open(Role::Agent(cmd.id), &endpoints)

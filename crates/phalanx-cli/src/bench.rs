@@ -35,7 +35,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_eval::bench::{self, Plan};
 use phalanx_eval::report::{self, Cell};
 use phalanx_eval::runs::{self, Appender};
-use phalanx_eval::{BenchError, Case, Method, Settings, Sources};
+use phalanx_eval::{BenchError, BenchSettings, Case, Method, Settings, Sources};
 use phalanx_rl::models;
 
 use crate::{meta, util};
@@ -271,41 +271,37 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
     };
 
     util::written(std::fs::create_dir_all(&args.out), &args.out)?;
-    let settings = serde_json::json!({
-        "benchmark": name,
-        "maps": plan.maps,
-        "seed": plan.seed,
-        "time_limit_s": plan.settings.time_limit_s,
-        "rollouts": plan.settings.rollouts,
-        "jsa_max_side": args.jsa_max_side,
-        "quick": quick,
-        // The learned policies by their weights' checksums, not by how their path is spelt,
-        // so that a resume from another directory or binary finds the same settings.
-        "meta": meta_file.as_deref().map(checksum).transpose()?,
-        "meta_front": meta_front
+    let settings = BenchSettings {
+        benchmark: name.to_owned(),
+        maps: plan.maps,
+        seed: plan.seed,
+        time_limit_s: plan.settings.time_limit_s,
+        rollouts: plan.settings.rollouts,
+        jsa_max_side: args.jsa_max_side,
+        quick,
+        meta: meta_file.as_deref().map(checksum).transpose()?,
+        meta_front: meta_front
             .as_ref()
             .map(|front| {
-                front
-                    .points
-                    .iter()
-                    .map(|(m, file)| Ok(serde_json::json!([m, checksum(file)?])))
-                    .collect::<anyhow::Result<Vec<_>>>()
+                let point = |(m, file): &(f64, PathBuf)| Ok((*m, checksum(file)?));
+                front.points.iter().map(point).collect::<anyhow::Result<Vec<_>>>()
             })
             .transpose()?,
-        "e2e": baseline_checksum(&args.e2e, "e2e")?,
-        "ctce": baseline_checksum(&args.ctce, "ctce")?,
-        "cases": cases.iter().map(|c| c.label.clone()).collect::<Vec<_>>(),
-    });
+        e2e: baseline_checksum(&args.e2e, "e2e")?,
+        ctce: baseline_checksum(&args.ctce, "ctce")?,
+        cases: cases.iter().map(|c| c.label.clone()).collect(),
+    };
     let settings_path = args.out.join("bench.json");
     let records_path = args.out.join("runs.jsonl");
     let records = if args.resume {
         let saved = phalanx_io::read_text(&settings_path)?;
-        let saved: serde_json::Value = serde_json::from_str(&saved)
+        let saved: BenchSettings = serde_json::from_str(&saved)
             .with_context(|| format!("{}: not benchmark settings", settings_path.display()))?;
         anyhow::ensure!(
             saved == settings,
-            "{} holds other settings ({saved}); resume with the same flags or use another --out",
-            settings_path.display()
+            "{} holds other settings ({}); resume with the same flags or use another --out",
+            settings_path.display(),
+            serde_json::to_string(&saved).expect("settings serialise")
         );
         runs::read_records(&records_path)?
     } else {
@@ -316,10 +312,8 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         );
         Vec::new()
     };
-    util::written(
-        phalanx_io::write_text(&settings_path, &format!("{settings:#}\n")),
-        &settings_path,
-    )?;
+    let text = serde_json::to_string_pretty(&settings).expect("settings serialise");
+    util::written(phalanx_io::write_text(&settings_path, &(text + "\n")), &settings_path)?;
     let done = runs::done(&records);
     let todo = bench::pending(&cases, &methods, &plan, &done).len();
     let mut appender = util::written(Appender::create(&records_path, &records), &records_path)?;

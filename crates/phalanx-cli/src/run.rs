@@ -111,6 +111,25 @@ impl Team {
     }
 }
 
+/// The policy a team runs, as `phalanx run` and `phalanx agent` take it.
+#[derive(Debug, clap::Args)]
+pub(crate) struct TeamArgs {
+    /// The policy the agents run (the world's --policy).
+    #[arg(long, value_enum, default_value = "pathfinding")]
+    pub(crate) policy: TeamPolicy,
+    /// The policy's directory or file (hrl: the meta policy's; default: the shipped
+    /// models/pathfinding or models/meta).
+    #[arg(long, value_name = "DIR")]
+    pub(crate) weights: Option<PathBuf>,
+}
+
+impl TeamArgs {
+    /// The team's policy, loaded for a team of `n` agents.
+    pub(crate) fn load(&self, n: usize) -> anyhow::Result<Team> {
+        Team::load(self.policy, self.weights.as_deref(), n)
+    }
+}
+
 /// Arguments of `phalanx run`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct RunCmd {
@@ -119,13 +138,8 @@ pub(crate) struct RunCmd {
     /// Agents of a .scen file: its first N (default all).
     #[arg(long, value_name = "N")]
     agents: Option<usize>,
-    /// The policy the agents run.
-    #[arg(long, value_enum, default_value = "pathfinding")]
-    policy: TeamPolicy,
-    /// The policy's directory or file (hrl: the meta policy's; default: the shipped
-    /// models/pathfinding or models/meta).
-    #[arg(long, value_name = "DIR")]
-    weights: Option<PathBuf>,
+    #[command(flatten)]
+    team: TeamArgs,
     /// How long the world waits for an action before the first agent not in waits this
     /// step, milliseconds.
     #[arg(long, default_value_t = 2000, value_name = "MS")]
@@ -236,11 +250,11 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let n = named.instance.n_agents();
-    let team = Team::load(cmd.policy, cmd.weights.as_deref(), n)?;
+    let team = cmd.team.load(n)?;
     if cmd.processes {
         return processes(&cmd, n, &team);
     }
-    let mut world = world_for(&named, &cmd.instance, cmd.policy, team.fov())?;
+    let mut world = world_for(&named, &cmd.instance, cmd.team.policy, team.fov())?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();
@@ -282,7 +296,7 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     let mut world = Command::new(&exe);
     world.arg("world").arg(&cmd.instance).args(["--listen", &endpoint, "--prefix", &prefix]);
     world.args(["--fov", &fov.to_string(), "--step-timeout", &cmd.step_timeout.to_string()]);
-    world.args(["--policy", cmd.policy.name()]);
+    world.args(["--policy", cmd.team.policy.name()]);
     if let Some(agents) = cmd.agents {
         world.args(["--agents", &agents.to_string()]);
     }
@@ -297,8 +311,8 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     for id in 0..n {
         let mut agent = Command::new(&exe);
         agent.args(["agent", "--id", &id.to_string(), "--connect", &endpoint, "--prefix", &prefix]);
-        agent.args(["--policy", cmd.policy.name()]);
-        if let Some(weights) = &cmd.weights {
+        agent.args(["--policy", cmd.team.policy.name()]);
+        if let Some(weights) = &cmd.team.weights {
             agent.arg("--weights").arg(weights);
         }
         let spawned = agent.stdin(Stdio::null()).stdout(Stdio::null()).spawn();

@@ -27,7 +27,7 @@ pub mod suite;
 pub use method::{Method, Settings, Solved, Solver};
 pub use named::{MethodError, Sources};
 pub use report::{Cell, cells};
-pub use runs::{RunKey, RunRecord};
+pub use runs::{BenchSettings, RunKey, RunRecord};
 pub use suite::{Case, PAPER_ROWS, PaperRow};
 
 /// Why a benchmark cannot go on.

@@ -8,9 +8,42 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use phalanx_plan::SolveSummary;
+use phalanx_rl::Rollouts;
 use serde::{Deserialize, Serialize};
 
 use crate::BenchError;
+
+/// What a benchmark's run folder was made with (`bench.json`): a resume must find the same.
+/// The learned policies are named by their weights' checksums, not by how their path is
+/// spelt, so that a resume from another directory or binary finds the same settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BenchSettings {
+    /// The benchmark (`table2`, `pareto`, `scaling`, `movingai`, `files`).
+    pub benchmark: String,
+    /// Instances per case.
+    pub maps: u64,
+    /// The evaluation stream's seed.
+    pub seed: u64,
+    /// Wall-clock limit of each planner run, seconds.
+    pub time_limit_s: f64,
+    /// The learned methods' test-time rollouts.
+    pub rollouts: Rollouts,
+    /// Largest map side joint-state A* runs on.
+    pub jsa_max_side: u32,
+    /// Whether it is the quick benchmark.
+    pub quick: bool,
+    /// The meta policy's checksum, when one runs.
+    pub meta: Option<String>,
+    /// The front of meta policies: `(multiple, checksum)` per point.
+    pub meta_front: Option<Vec<(f64, String)>>,
+    /// The end-to-end baseline's checksum, when given.
+    pub e2e: Option<String>,
+    /// The centralised baseline's checksum, when given.
+    pub ctce: Option<String>,
+    /// The cases' labels, in order.
+    pub cases: Vec<String>,
+}
 
 /// One run of one method on one instance.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -65,7 +65,8 @@ pub struct EvalEpisode {
 /// action taken with probability `epsilon` per agent and step (in the hierarchy: an action
 /// allowed by the agent's chosen low-level policy, the meta choice staying greedy); the best
 /// rollout by `keep` counts.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Rollouts {
     /// Rollouts per instance (at least 1).
     pub count: usize,
@@ -74,7 +75,7 @@ pub struct Rollouts {
     /// Seed of the random actions.
     pub seed: u64,
     /// Which rollout counts. Not written when the default.
-    #[serde(skip_serializing_if = "Keep::is_fastest")]
+    #[serde(default, skip_serializing_if = "Keep::is_fastest")]
     pub keep: Keep,
 }
 
