@@ -42,7 +42,8 @@ pub(crate) enum ImitateCmd {
 /// `phalanx imitate expert`.
 #[derive(Debug, Args)]
 pub(crate) struct ExpertArgs {
-    /// The expert: `swarm` or `jsa:W` (joint-state A* on T + W·ΣL_f, swarm when it fails).
+    /// The expert: `swarm`, `jsa:W` (joint-state A* on T + W·ΣL_f, swarm when it fails) or
+    /// `swarm-jsa:W` (swarm with joint-state A* on its local instances).
     #[arg(long, default_value = "swarm", value_parser = parse_expert)]
     expert: ExpertChoice,
     /// Instances per row (the evaluation stream's first ones).
@@ -87,7 +88,7 @@ pub(crate) struct DataArgs {
     /// Share of episodes with a wide team (formations from a 10×10 square).
     #[arg(long, default_value_t = 0.5, value_parser = util::fraction)]
     wide_share: f64,
-    /// The expert: `swarm` or `jsa:W`.
+    /// The expert: `swarm`, `jsa:W` or `swarm-jsa:W` (as `imitate expert`).
     #[arg(long, default_value = "swarm", value_parser = parse_expert)]
     expert: ExpertChoice,
     /// Node limit of one expert call.
@@ -121,11 +122,9 @@ pub(crate) fn run(cmd: ImitateCmd) -> anyhow::Result<ExitCode> {
 fn parse_expert(text: &str) -> Result<ExpertChoice, String> {
     match text.split_once(':') {
         None if text == "swarm" => Ok(ExpertChoice::Swarm),
-        Some(("jsa", w)) => {
-            let w = util::non_negative(w)?;
-            Ok(ExpertChoice::JointAStar { w })
-        }
-        _ => Err(format!("{text:?} is not an expert (swarm or jsa:W)")),
+        Some(("jsa", w)) => Ok(ExpertChoice::JointAStar { w: util::non_negative(w)? }),
+        Some(("swarm-jsa", w)) => Ok(ExpertChoice::SwarmJointAStar { w: util::non_negative(w)? }),
+        _ => Err(format!("{text:?} is not an expert (swarm, jsa:W or swarm-jsa:W)")),
     }
 }
 
@@ -271,6 +270,14 @@ fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
     util::written(phalanx_io::write_bytes(&args.out, &bytes), &args.out)?;
     let count = |end: EpisodeEnd| data.episodes.iter().filter(|e| e.end == end).count();
     let samples = data.n_samples();
+    let (mut makespan, mut loss, mut reached) = (0.0, 0.0, 0usize);
+    for episode in data.episodes.iter().filter(|e| e.end == EpisodeEnd::Reached) {
+        let m = PlanMetrics::of(&episode.instance, &episode.plan());
+        makespan += m.makespan as f64;
+        loss += m.formation_loss;
+        reached += 1;
+    }
+    let per = |x: f64| format!("{:.3}", x / reached.max(1) as f64);
     util::print(&util::table(&[
         ("file", args.out.display().to_string()),
         ("episodes", data.episodes.len().to_string()),
@@ -283,6 +290,7 @@ fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
                 count(EpisodeEnd::ExpertFailed)
             ),
         ),
+        ("makespan, Table II loss (reached)", format!("{} {}", per(makespan), per(loss))),
         ("steps", data.n_steps().to_string()),
         ("samples", samples.to_string()),
         ("expert plans", stats.expert.replans.to_string()),

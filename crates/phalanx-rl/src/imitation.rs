@@ -19,6 +19,7 @@
 use phalanx_core::{Action, Cell, Instance};
 use phalanx_env::{Env, EnvConfig, EnvError, LeaderRule, ObsBuffers, PoolConfig, Task, TrainPool};
 use phalanx_plan::expert::{Expert, ExpertConfig, ExpertPlanner, ExpertStats};
+use phalanx_plan::swarm::SubSolver;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -43,16 +44,27 @@ pub enum ExpertChoice {
         /// The loss weight `w`.
         w: f64,
     },
+    /// SWARM-MAPF-R whose local MAPF instances are solved by joint-state A\* on
+    /// `T + w·Σ L_f` first (`SubSolver::JointAStar`), CBS when that runs out of nodes.
+    SwarmJointAStar {
+        /// The loss weight `w`.
+        w: f64,
+    },
 }
 
 impl ExpertChoice {
     /// The expert's settings: this planner, `node_limit` per call.
     pub fn config(self, node_limit: u64) -> ExpertConfig {
-        let planner = match self {
-            ExpertChoice::Swarm => ExpertPlanner::Swarm,
-            ExpertChoice::JointAStar { w } => ExpertPlanner::JointAStar { w },
-        };
-        ExpertConfig { planner, node_limit, ..ExpertConfig::default() }
+        let mut config = ExpertConfig { node_limit, ..ExpertConfig::default() };
+        match self {
+            ExpertChoice::Swarm => {}
+            ExpertChoice::JointAStar { w } => config.planner = ExpertPlanner::JointAStar { w },
+            ExpertChoice::SwarmJointAStar { w } => {
+                config.swarm.sub_solver = SubSolver::JointAStar { w };
+                config.swarm.jsa_node_limit = node_limit;
+            }
+        }
+        config
     }
 }
 
@@ -306,7 +318,7 @@ fn check_config(config: &DataConfig) -> Result<(), DataError> {
     if config.pool.n_maps == 0 {
         return bad("pool.n_maps: the pool has no maps".into());
     }
-    if let ExpertChoice::JointAStar { w } = config.expert
+    if let ExpertChoice::JointAStar { w } | ExpertChoice::SwarmJointAStar { w } = config.expert
         && !(w.is_finite() && w >= 0.0)
     {
         return bad(format!("expert: the loss weight {w} is not a finite non-negative number"));
