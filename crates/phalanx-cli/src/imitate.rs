@@ -89,10 +89,10 @@ pub(crate) struct DataArgs {
     #[arg(long, default_value_t = 0.5, value_parser = util::fraction)]
     wide_share: f64,
     /// The expert: `swarm`, `jsa:W` or `swarm-jsa:W` (as `imitate expert`).
-    #[arg(long, default_value = "swarm", value_parser = parse_expert)]
+    #[arg(long, default_value = "swarm-jsa:1", value_parser = parse_expert)]
     expert: ExpertChoice,
-    /// Node limit of one expert call.
-    #[arg(long, default_value_t = 200_000)]
+    /// Node limit of one expert call (of each local joint-state A* search).
+    #[arg(long, default_value_t = DataConfig::default().node_limit)]
     node_limit: u64,
     /// Maps in the training pool.
     #[arg(long, default_value_t = PoolConfig::default().n_maps)]
@@ -262,8 +262,7 @@ fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
     };
     let bar = bar(args.episodes, "episodes");
     let started = Instant::now();
-    let (data, stats) =
-        imitation::generate(&config, &|n| bar.inc(n)).context("--agents, --noise or the pool")?;
+    let (data, stats) = imitation::generate(&config, &|n| bar.inc(n))?;
     let seconds = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
     let bytes = data.to_bytes();

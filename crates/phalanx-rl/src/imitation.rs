@@ -92,9 +92,10 @@ pub struct DataConfig {
     /// instead of the expert's, so the data visits states off the expert's plan (the label
     /// stays the expert's); default 0.05.
     pub noise: f64,
-    /// The expert; default SWARM-MAPF-R.
+    /// The expert; default SWARM-MAPF-R with joint-state A\* (`w = 1`) on its local
+    /// instances (`docs/imitation.md`, *Decision*).
     pub expert: ExpertChoice,
-    /// Node limit of one expert call; default 200 000.
+    /// Node limit of one expert call (of each local joint-state A\* search); default 20 000.
     pub node_limit: u64,
 }
 
@@ -109,8 +110,8 @@ impl Default for DataConfig {
             seed: 0,
             wide_share: 0.5,
             noise: 0.05,
-            expert: ExpertChoice::Swarm,
-            node_limit: 200_000,
+            expert: ExpertChoice::SwarmJointAStar { w: 1.0 },
+            node_limit: 20_000,
         }
     }
 }

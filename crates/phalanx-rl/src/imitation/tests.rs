@@ -6,7 +6,7 @@ use phalanx_core::validate;
 
 use super::*;
 
-/// A small data set's settings: a few 16² pool maps, short episodes.
+/// A small data set's settings: a few 16² pool maps, short episodes, the fast expert.
 fn small(noise: f64, episodes: u64) -> DataConfig {
     DataConfig {
         pool: PoolConfig { n_maps: 3, size: 16, ..PoolConfig::default() },
@@ -14,6 +14,7 @@ fn small(noise: f64, episodes: u64) -> DataConfig {
         episodes,
         seed: 5,
         noise,
+        expert: ExpertChoice::Swarm,
         ..DataConfig::default()
     }
 }
@@ -24,8 +25,10 @@ fn data(noise: f64, episodes: u64) -> Dataset {
 
 #[test]
 fn expert_episodes_without_noise_are_valid_plans_to_the_goals() {
-    let data = data(0.0, 4);
-    for episode in &data.episodes {
+    let swarm = data(0.0, 4);
+    let default_expert = DataConfig { expert: DataConfig::default().expert, ..small(0.0, 2) };
+    let swarm_jsa = generate(&default_expert, &|_| {}).unwrap().0;
+    for episode in swarm.episodes.iter().chain(&swarm_jsa.episodes) {
         assert_eq!(episode.end, EpisodeEnd::Reached);
         assert_eq!(episode.replans, 1, "on its own plan the expert plans once");
         let plan = episode.plan();
