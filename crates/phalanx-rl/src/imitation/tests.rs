@@ -60,7 +60,7 @@ fn messages_are_the_expert_actions_of_the_agents_ranked_before() {
         let mut env = Env::new(config.env.clone()).unwrap();
         env.reset(&episode.instance).unwrap();
         let n = episode.instance.n_agents();
-        let mut expected = vec![vec![0.0f32; n * N_ACTIONS]; 0];
+        let mut expected: Vec<Vec<f32>> = Vec::new();
         for step in &episode.steps {
             env.begin_turns(config.leader_rule);
             let mut row = vec![0.0f32; n * N_ACTIONS];
