@@ -11,7 +11,7 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
@@ -180,6 +180,7 @@ fn expert(args: &ExpertArgs) -> anyhow::Result<ExitCode> {
         "ms / plan".to_owned(),
         "µs / decision".to_owned(),
     ]];
+    let mut invalid = false;
     for case in &cases {
         let mut f = RowFigures::default();
         for index in 0..args.maps {
@@ -219,12 +220,10 @@ fn expert(args: &ExpertArgs) -> anyhow::Result<ExitCode> {
             }
             bar.inc(1);
         }
-        anyhow::ensure!(
-            f.invalid == 0,
-            "{}: {} expert episodes are invalid plans",
-            case.label,
-            f.invalid
-        );
+        if f.invalid > 0 {
+            util::warn(&format!("{}: {} expert episodes are invalid plans", case.label, f.invalid));
+            invalid = true;
+        }
         let solved = f.solved.max(1) as f64;
         let ratio = if f.cbs_solved > 0 {
             format!("{:.3}", f.paired_makespan / f.cbs_makespan)
@@ -244,7 +243,7 @@ fn expert(args: &ExpertArgs) -> anyhow::Result<ExitCode> {
     }
     bar.finish_and_clear();
     util::print(&util::columns(&rows))?;
-    Ok(ExitCode::SUCCESS)
+    Ok(if invalid { ExitCode::from(util::EXIT_INVALID) } else { ExitCode::SUCCESS })
 }
 
 fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
@@ -295,6 +294,7 @@ fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
         ("expert plans", stats.expert.replans.to_string()),
         ("joint-state A* fallbacks to swarm", stats.expert.fallbacks.to_string()),
         ("expert seconds planning", format!("{:.1}", stats.expert.plan_seconds)),
+        ("expert calls past the time limit", stats.expert.timeouts.to_string()),
         ("bytes", bytes.len().to_string()),
         ("seconds", format!("{seconds:.1}")),
         ("samples / s", format!("{:.0}", samples as f64 / seconds)),
@@ -329,7 +329,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<ExitCode> {
         .with_context(|| format!("replaying {}", path.display()))?;
         bar.inc(1);
     }
-    let seconds = started.elapsed().as_secs_f64().max(Duration::from_micros(1).as_secs_f64());
+    let seconds = started.elapsed().as_secs_f64().max(1e-6);
     bar.finish_and_clear();
     let share = |k: u64, of: u64| format!("{:.3}", k as f64 / of.max(1) as f64);
     let histogram = Action::ALL

@@ -40,12 +40,14 @@ pub enum ExpertChoice {
     #[default]
     Swarm,
     /// Joint-state A\* on `T + w·Σ L_f`, SWARM-MAPF-R when it runs out of nodes.
+    #[serde(rename = "jsa")]
     JointAStar {
         /// The loss weight `w`.
         w: f64,
     },
     /// SWARM-MAPF-R whose local MAPF instances are solved by joint-state A\* on
     /// `T + w·Σ L_f` first (`SubSolver::JointAStar`), CBS when that runs out of nodes.
+    #[serde(rename = "swarm-jsa")]
     SwarmJointAStar {
         /// The loss weight `w`.
         w: f64,
