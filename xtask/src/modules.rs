@@ -29,7 +29,7 @@ pub const RL_INFERENCE: &[&str] = &[
 ];
 /// phalanx-rl's training modules.
 pub const RL_TRAINING: &[&str] =
-    &["checkpoint", "learner", "meta_env", "replay", "resume", "settings", "train"];
+    &["checkpoint", "imitation", "learner", "meta_env", "replay", "resume", "settings", "train"];
 
 /// The module graph of the crate whose sources are in `src`.
 pub fn graph(src: &Path) -> std::io::Result<Graph> {

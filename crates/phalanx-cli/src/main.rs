@@ -15,6 +15,7 @@ mod demo;
 mod eval;
 #[path = "gen.rs"]
 mod generate;
+mod imitate;
 mod info;
 mod memory;
 mod meta;
@@ -72,6 +73,10 @@ enum Command {
     /// One agent of a decentralised run as a process: decides from its own observation and
     /// the actions of the agents before it, over Zenoh.
     Agent(agent::AgentCmd),
+    /// Imitation learning: measure the expert, write its rollouts on the training pool to a
+    /// data file, check a data file.
+    #[command(subcommand)]
+    Imitate(imitate::ImitateCmd),
     /// Train a path-finding, formation or meta policy (VDN + double DQN) on the training pool.
     Train(train::TrainCmd),
     /// Evaluate a trained policy on fresh maps (success rate, makespan, collisions, L_f).
@@ -120,6 +125,7 @@ fn main() -> ExitCode {
         Command::Run(cmd) => run::run(cmd),
         Command::World(cmd) => world::run(cmd),
         Command::Agent(cmd) => agent::run(cmd),
+        Command::Imitate(cmd) => imitate::run(cmd),
         Command::Train(cmd) => train::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
         Command::Curves(cmd) => plot::run(cmd),

@@ -5,6 +5,7 @@
 //! - [`cbs`], Conflict-Based Search, optimal for the sum of costs, with the ICBS improvements,
 //!   the CG heuristic, target and rectangle (symmetry) reasoning and a conflict-avoidance table;
 //! - [`ecbs`], bounded-suboptimal Enhanced CBS (focal search);
+//! - [`expert`], the expert of imitation learning: a plan from any joint state, cached;
 //! - [`joint_astar`], joint-state A*;
 //! - [`swarm`], SWARM-MAPF-R, a reconstruction of SWARM-MAPF;
 //! - [`planner`], one closed [`PlannerChoice`] over all of them and [`run_planner`].
@@ -33,6 +34,7 @@ pub mod astar;
 mod budget;
 pub mod cbs;
 pub mod ecbs;
+pub mod expert;
 pub mod joint_astar;
 pub mod planner;
 mod search;

@@ -18,7 +18,9 @@
 //!   `models/`) and the hierarchy of a meta policy over its low level;
 //! - [`policy_file`]: the file format of policy files and checkpoints (checksummed sections)
 //!   and loading a policy for acting;
-//! - [`checkpoint`]: atomic checkpoints of the whole learner with typed load errors.
+//! - [`checkpoint`]: atomic checkpoints of the whole learner with typed load errors;
+//! - [`imitation`]: imitation data: expert rollouts on the training pool, labels in the acting
+//!   order, the data file.
 //!
 //! The environments it trains on implement `phalanx_env::MarlEnv` (flat observation buffers,
 //! action masks, leader order); `phalanx_env::PoolEnv` is the low-level tasks' one.
@@ -44,6 +46,7 @@ pub mod eval;
 mod frozen;
 pub mod hierarchy;
 mod hyper;
+pub mod imitation;
 pub mod learner;
 pub mod meta_env;
 pub mod models;

@@ -1,5 +1,6 @@
 //! The same seed gives the same results on any thread count: `solve`, `eval`, `sim` and a
-//! short `train` run on one and on two threads, compared with their timings left out.
+//! short `train` run on one and on two threads, compared with their timings left out; the
+//! imitation data file, compared byte for byte.
 
 use std::path::Path;
 use std::process::Output;
@@ -98,4 +99,33 @@ fn results_do_not_depend_on_the_thread_count() {
         v.as_object_mut().unwrap().remove("weights");
     }
     assert_eq!(a, b);
+}
+
+#[test]
+fn imitation_data_is_the_same_file_on_one_and_two_threads_and_damage_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |out: &'static str| {
+        let mut a = vec!["imitate", "data", "--out", out, "--episodes", "6", "--seed", "2"];
+        a.extend(["--pool-maps", "2", "--expert", "swarm", "--noise", "0.1"]);
+        a
+    };
+    let (one, _) = check(&on_threads(dir.path(), "1", &args("one.bin")), 0);
+    check(&on_threads(dir.path(), "2", &args("two.bin")), 0);
+    assert!(one.contains("samples / s"), "{one}");
+    let bytes = std::fs::read(dir.path().join("one.bin")).unwrap();
+    assert_eq!(bytes, std::fs::read(dir.path().join("two.bin")).unwrap());
+
+    let (summary, _) = check(&on_threads(dir.path(), "1", &["imitate", "check", "one.bin"]), 0);
+    assert!(summary.contains("followers copying the leader"), "{summary}");
+    let mut damaged = bytes.clone();
+    let last = damaged.len() - 10;
+    damaged[last] ^= 0x40;
+    std::fs::write(dir.path().join("bad.bin"), &damaged).unwrap();
+    let (_, err) = check(&on_threads(dir.path(), "1", &["imitate", "check", "bad.bin"]), 2);
+    assert!(err.contains("bad.bin") && err.contains("CRC-32"), "{err}");
+    let (_, err) = check(
+        &on_threads(dir.path(), "1", &["imitate", "data", "--out", "x.bin", "--agents", "0"]),
+        2,
+    );
+    assert!(err.contains("agents"), "{err}");
 }
