@@ -7,8 +7,10 @@ use std::process::Output;
 use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
+mod hostile;
 mod kill;
 mod motion;
+mod numeric_flags;
 mod processes;
 mod render;
 mod threads;
