@@ -144,7 +144,8 @@ fn main() -> ExitCode {
     }
 }
 
-#[cfg(test)]
+// The list is of the default features' commands.
+#[cfg(all(test, feature = "processes"))]
 mod tests {
     use std::any::TypeId;
 
