@@ -6,7 +6,9 @@
 //! - `cargo xtask deps`: the dependency invariants of ARCHITECTURE.md (no burn below the
 //!   learning crates; the benchmark uses them without naming burn; pyo3 in the Python
 //!   package only, zenoh in the transport crate only).
-//! - `cargo xtask demo`: the README's main job, end to end on generated data.
+//! - `cargo xtask demo`: the README's main job, end to end on generated data: builds the
+//!   release binary (cargo's progress shown; without the `processes` feature, which the demo
+//!   does not use), then runs `phalanx demo`.
 //! - `cargo xtask test [CARGO TEST FLAGS]`: the README's test command: every Rust test
 //!   (`cargo test --workspace --all-targets`), then the Python package's tests (a virtualenv
 //!   in `target/py-venv` with the pinned test requirements, `maturin develop`, pytest).
@@ -140,8 +142,12 @@ fn tree(krate: &str, extra: &[&str]) -> anyhow::Result<String> {
 /// CBS and SWARM-MAPF on a generated and a MovingAI instance; `out/demo/index.html`).
 fn demo() -> anyhow::Result<()> {
     let root = xtask::workspace_root();
+    // Cargo's progress shows (a first build takes minutes); only the binary, without the
+    // decentralised processes' Zenoh transport, which the demo does not use.
+    println!("$ cargo build --release -p phalanx-cli --bin phalanx --no-default-features");
     let status = Command::new(env!("CARGO"))
-        .args(["build", "--release", "--quiet", "-p", "phalanx-cli"])
+        .args(["build", "--release", "-p", "phalanx-cli", "--bin", "phalanx"])
+        .arg("--no-default-features")
         .current_dir(&root)
         .status()
         .context("building phalanx")?;
@@ -154,6 +160,10 @@ fn demo() -> anyhow::Result<()> {
     if !status.success() {
         bail!("phalanx demo failed with {status}");
     }
+    println!(
+        "(this target/release/phalanx leaves out the processes of a decentralised run, \
+         `world` and `agent`: `cargo build --release -p phalanx-cli` adds them)"
+    );
     Ok(())
 }
 

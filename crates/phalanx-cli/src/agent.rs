@@ -7,7 +7,6 @@
 //! episode (exit 0), or when the world is gone or silent (exit 6).
 
 use std::process::ExitCode;
-use std::time::Duration;
 
 use anyhow::Context as _;
 use phalanx_runtime::RunError;
@@ -27,19 +26,19 @@ pub(crate) struct AgentCmd {
     #[command(flatten)]
     team: TeamArgs,
     /// The world's Zenoh endpoint.
-    #[arg(long, default_value = DEFAULT_WORLD_ENDPOINT, value_name = "ENDPOINT")]
+    #[arg(long, default_value = DEFAULT_WORLD_ENDPOINT, value_name = "ENDPOINT", value_parser = util::connect_endpoint)]
     connect: String,
     /// The Zenoh endpoint this agent listens on, for the other agents to connect to.
-    #[arg(long, default_value = DEFAULT_AGENT_ENDPOINT, value_name = "ENDPOINT")]
+    #[arg(long, default_value = DEFAULT_AGENT_ENDPOINT, value_name = "ENDPOINT", value_parser = util::listen_endpoint)]
     listen: String,
     /// The run's key prefix (as the world's).
     #[arg(long, default_value = DEFAULT_PREFIX)]
     prefix: String,
     /// How long to wait for the world and the other agents to join, seconds.
-    #[arg(long, default_value_t = 60.0, value_parser = util::positive, value_name = "S")]
+    #[arg(long, default_value_t = 60.0, value_parser = util::seconds, value_name = "S")]
     join_timeout: f64,
     /// How long the world may be silent before the agent gives up, seconds.
-    #[arg(long, default_value_t = 30.0, value_parser = util::positive, value_name = "S")]
+    #[arg(long, default_value_t = 30.0, value_parser = util::seconds, value_name = "S")]
     silence: f64,
 }
 
@@ -51,16 +50,18 @@ pub(crate) fn run(cmd: AgentCmd) -> anyhow::Result<ExitCode> {
     endpoints.prefix = cmd.prefix.clone();
     let mut transport = ZenohTransport::open(Role::Agent(cmd.id), &endpoints)
         .with_context(|| format!("agent {}: opening its endpoint", cmd.id))?;
-    let n = transport
-        .wait_ready(Duration::from_secs_f64(cmd.join_timeout))
-        .map_err(|err| util::PeerGone(err.to_string()))?;
+    let n = transport.wait_ready(util::duration(cmd.join_timeout)).map_err(|err| match err {
+        // A bad --id is bad input, not a peer gone.
+        err @ phalanx_zenoh::NetError::NotInTeam { .. } => anyhow::Error::new(err),
+        err => util::PeerGone(err.to_string()).into(),
+    })?;
     anyhow::ensure!(
         cmd.id < n,
         "agent {}: the world's team has {n} agents (ids 0 to {})",
         cmd.id,
         n - 1
     );
-    let silence = Duration::from_secs_f64(cmd.silence);
+    let silence = util::duration(cmd.silence);
     match team
         .run_agent(cmd.id, &mut transport, silence)
         .with_context(|| format!("agent {}", cmd.id))?

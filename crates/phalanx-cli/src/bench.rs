@@ -115,7 +115,7 @@ pub(crate) struct BenchArgs {
     #[arg(long, default_value_t = 11)]
     seed: u64,
     /// Wall-clock limit of each planner run, seconds.
-    #[arg(long, default_value_t = 300.0, value_parser = util::positive)]
+    #[arg(long, default_value_t = 300.0, value_parser = util::seconds)]
     time_limit: f64,
     #[command(flatten)]
     rollouts: meta::RolloutArgs,
@@ -254,6 +254,9 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
             names
         }
     };
+    if let Some(twice) = names.iter().enumerate().find(|(i, n)| names[..*i].contains(n)) {
+        anyhow::bail!("--methods names {} twice: each method runs once per instance", twice.1);
+    }
     let sources = Sources {
         jsa_max_side: Some(args.jsa_max_side),
         meta: meta_file.as_deref(),
@@ -303,7 +306,16 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
             settings_path.display(),
             serde_json::to_string(&saved).expect("settings serialise")
         );
-        runs::read_records(&records_path)?
+        let records = runs::read_records(&records_path)?;
+        let expected: std::collections::BTreeSet<runs::RunKey> =
+            bench::pending(&cases, &methods, &plan, &Default::default())
+                .into_iter()
+                .map(|(c, index, m)| {
+                    runs::RunKey(cases[c].label.clone(), index, methods[m].name.clone())
+                })
+                .collect();
+        runs::check_records(&records_path, &records, &expected)?;
+        records
     } else {
         anyhow::ensure!(
             !records_path.exists(),

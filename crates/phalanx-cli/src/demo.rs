@@ -41,7 +41,7 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Wall-clock limit of each planner run, in seconds.
-    #[arg(long, default_value_t = 30.0, value_parser = util::positive)]
+    #[arg(long, default_value_t = 30.0, value_parser = util::seconds)]
     time_limit: f64,
     #[command(flatten)]
     rollouts: meta::RolloutArgs,

@@ -169,6 +169,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     let device = Device::flex();
     let (mut policy, header) =
         load_policy_any(&file, &device).with_context(|| format!("loading the {name} policy"))?;
+    models::check_kind(&file, &header, if scripted { "pathfinding" } else { name })?;
     let fov = header.net_config.fov as u32;
     anyhow::ensure!(
         cmd.map.fov == fov,

@@ -1,5 +1,7 @@
 //! `phalanx info`: describe an instance: size, density, agents, the formation (the goals'
-//! layout) as an ASCII picture, and each agent's start, goal and BFS distance.
+//! layout) as an ASCII picture, and each agent's start, goal and BFS distance (the first
+//! 100 agents, fewer on maps so large that their searches would take more than a second or
+//! so).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -18,6 +20,11 @@ pub(crate) struct Args {
     agents: Option<usize>,
 }
 
+/// The most agents listed, each with its BFS distance.
+const MAX_ROWS: usize = 100;
+/// The most cells the listed agents' BFS searches visit in all (a second or so).
+const MAX_BFS_CELLS: usize = 50_000_000;
+
 /// Largest formation picture side drawn.
 const MAX_PICTURE: i32 = 64;
 
@@ -34,13 +41,21 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     text.push_str("formation (goal layout, agent numbers; y grows upwards):\n");
     text.push_str(&formation_picture(inst));
     let mut rows = vec![["agent", "name", "start", "goal", "distance"].map(String::from).to_vec()];
-    for (i, name) in named.names.iter().enumerate() {
+    // One BFS per row: at most MAX_ROWS rows, fewer on large maps (MAX_BFS_CELLS in all).
+    let shown = (MAX_BFS_CELLS / grid.n_cells().max(1)).clamp(1, MAX_ROWS).min(inst.n_agents());
+    for (i, name) in named.names.iter().enumerate().take(shown) {
         let (start, goal) = (inst.starts()[i], inst.goals()[i]);
         let dist =
             DistanceMap::bfs(grid, goal).get(start).map_or("-".to_owned(), |d| d.to_string());
         rows.push(vec![i.to_string(), name.clone(), start.to_string(), goal.to_string(), dist]);
     }
     text.push_str(&util::columns(&rows));
+    if shown < inst.n_agents() {
+        text.push_str(&format!(
+            "… and {} more agents (the first {shown} are listed; --agents N takes the first N)\n",
+            inst.n_agents() - shown
+        ));
+    }
     util::print(&text)?;
     Ok(ExitCode::SUCCESS)
 }

@@ -7,8 +7,9 @@
 //! Exit codes: 0 success, 1 an invalid plan (`validate`) or no plan, 2 bad input (unreadable
 //! or malformed files, bad flags), 3 an output that cannot be written, 4 no plan from an
 //! incomplete planner, 5 the memory bound ([`memory`]), 6 a peer of a decentralised run gone;
-//! see [`util`].
+//! see [`util`]. The feature `processes` (default) adds `world` and `agent` (Zenoh).
 
+#[cfg(feature = "processes")]
 mod agent;
 mod bench;
 mod demo;
@@ -29,6 +30,7 @@ mod train;
 mod util;
 mod validate;
 mod weight;
+#[cfg(feature = "processes")]
 mod world;
 
 use std::io::Write as _;
@@ -69,9 +71,11 @@ enum Command {
     Run(run::RunCmd),
     /// The world of a decentralised run as a process: owns the instance, hands out the
     /// observations over Zenoh, collects the actions, writes the trajectory.
+    #[cfg(feature = "processes")]
     World(world::WorldCmd),
     /// One agent of a decentralised run as a process: decides from its own observation and
     /// the actions of the agents before it, over Zenoh.
+    #[cfg(feature = "processes")]
     Agent(agent::AgentCmd),
     /// Imitation learning: measure the expert, write its rollouts on the training pool to a
     /// data file, check a data file.
@@ -123,7 +127,9 @@ fn main() -> ExitCode {
         Command::Sim(cmd) => sim::run(cmd),
         Command::Solve(cmd) => solve::run(cmd),
         Command::Run(cmd) => run::run(cmd),
+        #[cfg(feature = "processes")]
         Command::World(cmd) => world::run(cmd),
+        #[cfg(feature = "processes")]
         Command::Agent(cmd) => agent::run(cmd),
         Command::Imitate(cmd) => imitate::run(cmd),
         Command::Train(cmd) => train::run(cmd),
@@ -141,5 +147,76 @@ fn main() -> ExitCode {
             let _ = writeln!(std::io::stderr(), "error: {err:#}");
             ExitCode::from(util::exit_code(&err))
         }
+    }
+}
+
+// The list is of the default features' commands.
+#[cfg(all(test, feature = "processes"))]
+mod tests {
+    use std::any::TypeId;
+
+    use clap::CommandFactory as _;
+
+    use super::Cli;
+
+    /// The list of numeric flags the table-driven test of `tests/it/numeric_flags.rs` feeds
+    /// hostile values, one `SUBCOMMAND… --FLAG TYPE` a line.
+    const LIST: &str = "tests/it/numeric_flags.txt";
+
+    /// Every flag of every subcommand whose value parser makes a number, read from the
+    /// command definitions.
+    fn numeric_flags() -> String {
+        let numeric: [(TypeId, &str); 10] = [
+            (TypeId::of::<f64>(), "f64"),
+            (TypeId::of::<f32>(), "f32"),
+            (TypeId::of::<u64>(), "u64"),
+            (TypeId::of::<u32>(), "u32"),
+            (TypeId::of::<u16>(), "u16"),
+            (TypeId::of::<u8>(), "u8"),
+            (TypeId::of::<usize>(), "usize"),
+            (TypeId::of::<i64>(), "i64"),
+            (TypeId::of::<i32>(), "i32"),
+            (TypeId::of::<isize>(), "isize"),
+        ];
+        let mut lines = Vec::new();
+        let mut stack = vec![(Vec::<String>::new(), Cli::command())];
+        while let Some((path, command)) = stack.pop() {
+            for arg in command.get_arguments() {
+                let id = arg.get_value_parser().type_id();
+                let (Some(long), Some((_, kind))) =
+                    (arg.get_long(), numeric.iter().find(|(it, _)| id == *it))
+                else {
+                    continue;
+                };
+                if !path.is_empty() {
+                    lines.push(format!("{} --{long} {kind}", path.join(" ")));
+                }
+            }
+            for sub in command.get_subcommands() {
+                let mut sub_path = path.clone();
+                sub_path.push(sub.get_name().to_owned());
+                stack.push((sub_path, sub.clone()));
+            }
+        }
+        lines.sort();
+        lines.iter().map(|line| format!("{line}\n")).collect()
+    }
+
+    /// The list the integration test reads is the one the command definitions give; with
+    /// `UPDATE_EXPECT=1` this test writes it.
+    #[test]
+    fn the_list_of_numeric_flags_is_the_commands_own() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(LIST);
+        let now = numeric_flags();
+        if std::env::var_os("UPDATE_EXPECT").is_some() {
+            std::fs::write(&path, &now).unwrap();
+        }
+        let listed = std::fs::read_to_string(&path).unwrap_or_default();
+        assert!(
+            listed == now,
+            "{LIST} is not the list of numeric flags the commands define: run \
+             `UPDATE_EXPECT=1 cargo test -p phalanx-cli --bin phalanx numeric_flags` (and give \
+             a new subcommand its fixture in tests/it/numeric_flags.rs)\nnow:\n{now}"
+        );
     }
 }

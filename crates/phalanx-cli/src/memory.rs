@@ -146,8 +146,15 @@ pub(crate) fn parse_size(text: &str) -> Result<Option<u64>, String> {
     if !(value.is_finite() && value > 0.0) {
         return Err(format!("{text:?}: a memory bound must be positive (or none)"));
     }
-    Ok(Some((value * (1u64 << shift) as f64) as u64))
+    let bytes = value * (1u64 << shift) as f64;
+    if bytes < MIN_LIMIT as f64 {
+        return Err(format!("{text:?}: below the least a run needs, {} MiB", MIN_LIMIT >> 20));
+    }
+    Ok(Some(bytes.min(u64::MAX as f64) as u64))
 }
+
+/// The smallest memory bound accepted: less and no run could start.
+const MIN_LIMIT: u64 = 4 << 20;
 
 /// The default bound: 90 % of `MemAvailable`, `None` where `/proc/meminfo` says nothing.
 fn default_limit() -> Option<u64> {

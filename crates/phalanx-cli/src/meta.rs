@@ -86,12 +86,17 @@ impl LeaderArgs {
     }
 }
 
+/// The most rollouts per instance: more would run for hours on one instance, with no
+/// progress shown.
+const MAX_ROLLOUTS: i64 = 1000;
+
 /// The test-time rollouts of the learned methods (`solve`, `bench`; docs/spec.md §6).
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct RolloutArgs {
     /// Learned policies: rollouts per instance, the first greedy, the others with random
-    /// actions (--random-prob); the best one counts and the runtime covers all of them.
-    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..))]
+    /// actions (--random-prob); the best one counts and the runtime covers all of them
+    /// (1 to 1000).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=MAX_ROLLOUTS))]
     rollouts: u32,
     /// Learned policies: probability of a random allowed action per agent and step in the
     /// rollouts after the first.

@@ -25,36 +25,37 @@ pub(crate) struct Args {
     instance: PathBuf,
     /// Plan file (libMultiRobotPlanning schedule YAML).
     plan: PathBuf,
-    /// The cars' wheelbase in metres.
-    #[arg(long, value_name = "M", value_parser = util::positive)]
+    /// The cars' wheelbase in metres (0.001 to 10 000, as every length).
+    #[arg(long, value_name = "M", value_parser = length)]
     wheelbase: f64,
     /// The largest steering angle either way, in degrees (0 to 90, both excluded).
     #[arg(long, value_name = "DEG", value_parser = steer_angle)]
     max_steer: f64,
     /// The side of a grid cell in metres.
-    #[arg(long, value_name = "M", value_parser = util::positive)]
+    #[arg(long, value_name = "M", value_parser = length)]
     cell: f64,
-    /// The cars' top speed in m/s; without --dt, the step duration is derived from it.
-    #[arg(long, value_name = "M/S", value_parser = util::positive)]
+    /// The cars' top speed in m/s (0.001 to 1000); without --dt, the step duration is
+    /// derived from it.
+    #[arg(long, value_name = "M/S", value_parser = |t: &str| util::within(t, 1e-3, 1e3))]
     max_speed: Option<f64>,
     /// The duration of one plan step in seconds (default: the shortest within --max-speed,
-    /// else 1).
-    #[arg(long, value_name = "S", value_parser = util::positive)]
+    /// else 1; 0.001 to 10 000).
+    #[arg(long, value_name = "S", value_parser = |t: &str| util::within(t, 1e-3, 1e4))]
     dt: Option<f64>,
-    /// Trajectory samples per second.
-    #[arg(long, value_name = "HZ", default_value_t = 10.0, value_parser = util::positive)]
+    /// Trajectory samples per second (0.001 to 1000).
+    #[arg(long, value_name = "HZ", default_value_t = 10.0, value_parser = |t: &str| util::within(t, 1e-3, 1e3))]
     rate: f64,
-    /// The longest integration sub-step in seconds.
-    #[arg(long, value_name = "S", default_value_t = 0.01, value_parser = util::positive)]
+    /// The longest integration sub-step in seconds (0.000 01 to 1).
+    #[arg(long, value_name = "S", default_value_t = 0.01, value_parser = |t: &str| util::within(t, 1e-5, 1.0))]
     sub_step: f64,
     /// The body length in metres (default 1.4 × wheelbase).
-    #[arg(long, value_name = "M", value_parser = util::positive)]
+    #[arg(long, value_name = "M", value_parser = length)]
     length: Option<f64>,
     /// The body width in metres (default 0.8 × wheelbase).
-    #[arg(long, value_name = "M", value_parser = util::positive)]
+    #[arg(long, value_name = "M", value_parser = length)]
     width: Option<f64>,
-    /// Pure pursuit's smallest look-ahead distance, in cells.
-    #[arg(long, value_name = "CELLS", default_value_t = 0.25, value_parser = util::positive)]
+    /// Pure pursuit's smallest look-ahead distance, in cells (0.001 to 1000).
+    #[arg(long, value_name = "CELLS", default_value_t = 0.25, value_parser = |t: &str| util::within(t, 1e-3, 1e3))]
     lookahead: f64,
     /// Write the trajectory: .csv (one row per car and sample) or .json (report and samples).
     #[arg(short, long, value_name = "FILE")]
@@ -71,10 +72,16 @@ pub(crate) struct Args {
     json: bool,
 }
 
+/// A length in metres, within [`phalanx_motion::LENGTH_RANGE`].
+fn length(text: &str) -> Result<f64, String> {
+    util::within(text, phalanx_motion::LENGTH_RANGE.0, phalanx_motion::LENGTH_RANGE.1)
+}
+
 /// A steering angle in degrees: a number in `(0, 90)`.
 fn steer_angle(text: &str) -> Result<f64, String> {
-    util::positive(text)
-        .and_then(|v| if v < 90.0 { Ok(v) } else { Err(format!("{v} is not in (0, 90) degrees")) })
+    util::positive(text).and_then(|v| {
+        if v < 90.0 { Ok(v) } else { Err(format!("{} is not in (0, 90) degrees", util::shown(v))) }
+    })
 }
 
 /// The trajectory's file format.

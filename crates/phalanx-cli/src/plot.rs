@@ -55,6 +55,11 @@ pub(crate) struct CurvesCmd {
 
 /// Runs `phalanx curves`.
 pub(crate) fn run(cmd: CurvesCmd) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        cmd.out.extension().is_some_and(|ext| ext.eq_ignore_ascii_case("svg")),
+        "{}: the figure is an SVG: name it .svg",
+        cmd.out.display()
+    );
     let mut panels = empty_panels(&COMPARE_PANELS);
     for spec in &cmd.runs {
         let (label, path) = match spec.split_once('=') {

@@ -25,8 +25,8 @@ pub(crate) enum CropName {
 /// The drawing flags shared by `render`, `solve --render` and `eval --render`.
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct PictureArgs {
-    /// Frames per second of the animations.
-    #[arg(long, value_name = "N", default_value_t = 8.0, value_parser = util::positive)]
+    /// Frames per second of the animations (0.1 to 100).
+    #[arg(long, value_name = "N", default_value_t = 8.0, value_parser = fps)]
     fps: f64,
     /// Do not draw the agents' fields of view.
     #[arg(long)]
@@ -37,6 +37,12 @@ pub(crate) struct PictureArgs {
     /// The most frames of an animation (longer episodes show every k-th step).
     #[arg(long, value_name = "N", default_value_t = 600, value_parser = clap::value_parser!(u32).range(2..))]
     max_frames: u32,
+}
+
+/// `--fps`: a number of frames per second from [`phalanx_render::MIN_FPS`] to
+/// [`phalanx_render::MAX_FPS`].
+fn fps(text: &str) -> Result<f64, String> {
+    util::within(text, phalanx_render::MIN_FPS, phalanx_render::MAX_FPS)
 }
 
 impl PictureArgs {
@@ -86,6 +92,15 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     let title = args.title.unwrap_or_else(|| {
         args.plan.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
     });
+    if let Err(violation) = phalanx_core::validate(&named.instance, &plan) {
+        if matches!(violation.kind, phalanx_core::ViolationKind::OutOfBounds { .. }) {
+            anyhow::bail!("{}: {violation}: the plan cannot be drawn", args.plan.display());
+        }
+        util::warn(&format!(
+            "warning: {} is not a valid plan ({violation}); drawn as it is",
+            args.plan.display()
+        ));
+    }
     let scene = Scene { instance: &named.instance, plan: &plan, choices: None, title: &title };
     let options = args.picture.options();
     if let Some(step) = args.step {

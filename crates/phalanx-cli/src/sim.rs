@@ -33,6 +33,7 @@ pub(crate) struct SimCmd {
 
 /// Runs `phalanx sim`.
 pub(crate) fn run(cmd: SimCmd) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(cmd.episodes >= 1, "--episodes 0: there is nothing to simulate");
     let named = match &cmd.instance {
         Some(path) => Some(util::read_instance(path, cmd.map.agents)?),
         None => None,

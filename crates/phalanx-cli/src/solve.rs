@@ -15,7 +15,6 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
 
 use anyhow::Context;
 use burn::tensor::Device;
@@ -69,7 +68,7 @@ pub(crate) struct SolveCmd {
     #[arg(long, value_parser = util::non_negative)]
     weight: Option<f64>,
     /// Wall-clock limit in seconds (classical planners).
-    #[arg(long, default_value_t = 300.0, value_parser = util::positive)]
+    #[arg(long, default_value_t = 300.0, value_parser = util::seconds)]
     time_limit: f64,
     #[command(flatten)]
     rollouts: meta::RolloutArgs,
@@ -104,6 +103,12 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     if let Some(path) = &cmd.render {
         render::format_of(path)?;
     }
+    anyhow::ensure!(
+        cmd.weight.is_none() || matches!(cmd.planner, PlannerName::Ecbs | PlannerName::Jsa),
+        "--weight is a flag of the planners ecbs (its suboptimality bound) and jsa (its \
+         formation-loss weight) only, not of {}",
+        planner_name(cmd.planner)
+    );
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let instance = &named.instance;
     if matches!(cmd.planner, PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader) {
@@ -112,7 +117,10 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     let choice = match cmd.planner {
         PlannerName::Astar => PlannerChoice::SpaceTimeAStar(astar::AStarConfig::default()),
         PlannerName::Cbs => PlannerChoice::Cbs(cbs::CbsConfig::default()),
-        PlannerName::Ecbs => PlannerChoice::Ecbs(ecbs::EcbsConfig { w: cmd.weight.unwrap_or(1.2) }),
+        PlannerName::Ecbs => PlannerChoice::Ecbs(
+            ecbs::EcbsConfig::new(cmd.weight.unwrap_or(1.2))
+                .map_err(|err| anyhow::anyhow!("--weight: {err}"))?,
+        ),
         PlannerName::Jsa => PlannerChoice::JointAStar(JointAStarConfig::with_objective(
             Objective::Weighted(cmd.weight.unwrap_or(1.0)),
         )),
@@ -121,8 +129,7 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
             unreachable!("learned planners return above")
         }
     };
-    let budget =
-        Budget { time_limit: Some(Duration::from_secs_f64(cmd.time_limit)), node_limit: None };
+    let budget = Budget { time_limit: Some(util::duration(cmd.time_limit)), node_limit: None };
     let report = run_planner(instance, &choice, &budget);
     let summary = SolveSummary::new(instance, &choice, &report);
     if let (Some(path), Ok(plan)) = (&cmd.output, &report.result) {
@@ -138,6 +145,12 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
         render::episode(path, instance, plan, None, &title, &cmd.picture)?;
     }
     report_summary(&summary, cmd.json)
+}
+
+/// The planner's name as `--planner` spells it.
+fn planner_name(planner: PlannerName) -> String {
+    use clap::ValueEnum as _;
+    planner.to_possible_value().map_or_else(String::new, |v| v.get_name().to_owned())
 }
 
 /// Prints the summary; the exit code of its outcome.
@@ -164,6 +177,7 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let file = models::weights_file(cmd.weights.as_deref(), name)?;
     let (policy, header) = load_policy_any(&file, &Device::flex())
         .with_context(|| format!("loading the {name} policy"))?;
+    models::check_kind(&file, &header, name)?;
     let solver = if hrl {
         let hierarchy = models::hierarchy(policy, &header, &file, None, None)?;
         Solver::Hierarchy(Box::new(hierarchy))

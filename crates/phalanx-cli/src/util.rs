@@ -94,19 +94,110 @@ pub(crate) fn exit_code(err: &anyhow::Error) -> u8 {
 
 /// A flag value that is a finite number of at least 0.
 pub(crate) fn non_negative(text: &str) -> Result<f64, String> {
-    number(text).and_then(|v| if v >= 0.0 { Ok(v) } else { Err(format!("{v} is negative")) })
+    number(text)
+        .and_then(|v| if v >= 0.0 { Ok(v) } else { Err(format!("{} is negative", shown(v))) })
 }
 
 /// A flag value that is a finite number above 0.
 pub(crate) fn positive(text: &str) -> Result<f64, String> {
-    number(text).and_then(|v| if v > 0.0 { Ok(v) } else { Err(format!("{v} is not above 0")) })
+    number(text)
+        .and_then(|v| if v > 0.0 { Ok(v) } else { Err(format!("{} is not above 0", shown(v))) })
 }
 
 /// A flag value that is a probability or a fraction: a number in `[0, 1]`.
 pub(crate) fn fraction(text: &str) -> Result<f64, String> {
     number(text).and_then(|v| {
-        if (0.0..=1.0).contains(&v) { Ok(v) } else { Err(format!("{v} is not in [0, 1]")) }
+        if (0.0..=1.0).contains(&v) { Ok(v) } else { Err(format!("{} is not in [0, 1]", shown(v))) }
     })
+}
+
+/// The longest duration a flag in seconds accepts (`--time-limit`, `--join-timeout`,
+/// `--silence`): about eleven days.
+pub(crate) const MAX_SECONDS: f64 = 1e6;
+
+/// A duration flag in seconds: a finite number above 0 and at most [`MAX_SECONDS`]; every
+/// duration flag reads through this one parser, so none reaches `Duration` out of range.
+pub(crate) fn seconds(text: &str) -> Result<f64, String> {
+    positive(text).and_then(|v| {
+        if v <= MAX_SECONDS {
+            Ok(v)
+        } else {
+            Err(format!("{} s is longer than the longest duration, {MAX_SECONDS:e} s", shown(v)))
+        }
+    })
+}
+
+/// The duration of `seconds`, a value [`seconds`] accepted.
+pub(crate) fn duration(seconds: f64) -> std::time::Duration {
+    std::time::Duration::try_from_secs_f64(seconds).unwrap_or(std::time::Duration::MAX)
+}
+
+/// A flag value in `[lo, hi]` (a finite number).
+pub(crate) fn within(text: &str, lo: f64, hi: f64) -> Result<f64, String> {
+    number(text).and_then(|v| {
+        if (lo..=hi).contains(&v) {
+            Ok(v)
+        } else {
+            Err(format!("{} is not in [{lo}, {hi}]", shown(v)))
+        }
+    })
+}
+
+/// A Zenoh endpoint to connect to (`--connect`): as [`listen_endpoint`], the port not 0.
+/// Checked here so that an agent told to connect to `tcp/999.1.1.1:1` says so at once
+/// instead of waiting for a world that cannot be reached.
+#[cfg(feature = "processes")]
+pub(crate) fn connect_endpoint(text: &str) -> Result<String, String> {
+    endpoint(text, 1)
+}
+
+/// A Zenoh endpoint to listen on (`--listen`): `PROTOCOL/ADDRESS`; for `tcp`, `udp`, `tls`
+/// and `quic` the address is `HOST:PORT` with a port from 0 (any free one) to 65535 and,
+/// where the host is written as an IP address, a valid one.
+#[cfg(feature = "processes")]
+pub(crate) fn listen_endpoint(text: &str) -> Result<String, String> {
+    endpoint(text, 0)
+}
+
+/// An endpoint whose port is at least `min_port`.
+#[cfg(feature = "processes")]
+fn endpoint(text: &str, min_port: u16) -> Result<String, String> {
+    let Some((protocol, address)) = text.split_once('/') else {
+        return Err(format!(
+            "{text:?} is not an endpoint (PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447)"
+        ));
+    };
+    if !matches!(protocol, "tcp" | "udp" | "tls" | "quic") {
+        return Ok(text.to_owned());
+    }
+    let address = address.split_once('#').map_or(address, |(it, _)| it);
+    let Some((host, port)) = address.rsplit_once(':') else {
+        return Err(format!("{text:?}: the address {address:?} has no port (HOST:PORT)"));
+    };
+    match port.parse::<u16>() {
+        Ok(port) if port >= min_port => {}
+        _ => {
+            return Err(format!(
+                "{text:?}: the port {port:?} is not a number from {min_port} to 65535"
+            ));
+        }
+    }
+    let ip_like = !host.is_empty() && host.chars().all(|c| c.is_ascii_digit() || c == '.');
+    let bad_ip = if let Some(v6) = host.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
+        v6.parse::<std::net::Ipv6Addr>().is_err()
+    } else {
+        host.is_empty() || (ip_like && host.parse::<std::net::Ipv4Addr>().is_err())
+    };
+    if bad_ip {
+        return Err(format!("{text:?}: the host {host:?} is not a valid address"));
+    }
+    Ok(text.to_owned())
+}
+
+/// `v` as a message shows it: in scientific notation when very large or very small, so that
+/// 1e300 is not printed with 300 digits.
+pub(crate) fn shown(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) { format!("{v:e}") } else { format!("{v}") }
 }
 
 /// A finite number.

@@ -27,7 +27,7 @@ pub(crate) struct WorldCmd {
     #[arg(long, value_name = "N")]
     agents: Option<usize>,
     /// The Zenoh endpoint to listen on, which the agents connect to.
-    #[arg(long, default_value = DEFAULT_WORLD_ENDPOINT, value_name = "ENDPOINT")]
+    #[arg(long, default_value = DEFAULT_WORLD_ENDPOINT, value_name = "ENDPOINT", value_parser = util::listen_endpoint)]
     listen: String,
     /// The run's key prefix (runs with different prefixes on one network do not mix).
     #[arg(long, default_value = DEFAULT_PREFIX)]
@@ -47,7 +47,7 @@ pub(crate) struct WorldCmd {
     #[arg(long, default_value_t = 0, value_name = "MS")]
     step_period: u64,
     /// How long to wait for every agent to join, seconds.
-    #[arg(long, default_value_t = 60.0, value_parser = util::positive, value_name = "S")]
+    #[arg(long, default_value_t = 60.0, value_parser = util::seconds, value_name = "S")]
     join_timeout: f64,
     /// Write the trajectory as a libMultiRobotPlanning plan (when it reaches the goals).
     #[arg(short, long)]
@@ -68,7 +68,7 @@ pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     let mut transport =
         ZenohTransport::open(Role::World(n), &endpoints).context("opening the world's endpoint")?;
     transport
-        .wait_ready(Duration::from_secs_f64(cmd.join_timeout))
+        .wait_ready(util::duration(cmd.join_timeout))
         .map_err(|err| util::PeerGone(err.to_string()))?;
     util::warn(&format!("world: {n} agents ready under {:?}, the episode starts", cmd.prefix));
     let started = Instant::now();

@@ -108,8 +108,20 @@ impl Instance {
             return Err(InstanceError::TooManyAgents(starts.len()));
         }
         for (what, cells) in [("start", &starts), ("goal", &goals)] {
-            // Ids seen so far with their agent, sorted by id (no hashing: deterministic).
-            let mut seen: Vec<(u32, usize)> = Vec::with_capacity(cells.len());
+            // The first agent (in agent order) on a cell an earlier agent holds, with that
+            // earlier agent: sorted (id, agent) pairs, no hashing (deterministic), n log n.
+            let mut ids: Vec<(u32, usize)> = cells
+                .iter()
+                .enumerate()
+                .filter(|(_, cell)| grid.in_bounds(**cell))
+                .map(|(agent, &cell)| (grid.id(cell).0, agent))
+                .collect();
+            ids.sort_unstable();
+            let duplicate = ids
+                .windows(2)
+                .filter(|pair| pair[0].0 == pair[1].0)
+                .map(|pair| (pair[1].1, pair[0].1))
+                .min_by_key(|&(agent, _)| agent);
             for (agent, &cell) in cells.iter().enumerate() {
                 if !grid.in_bounds(cell) {
                     let (width, height) = (grid.width(), grid.height());
@@ -118,13 +130,10 @@ impl Instance {
                 if grid.is_blocked(cell) {
                     return Err(InstanceError::Blocked { agent, what, cell });
                 }
-                let id = grid.id(cell).0;
-                match seen.binary_search_by_key(&id, |&(seen_id, _)| seen_id) {
-                    Ok(pos) => {
-                        let first = seen[pos].1;
-                        return Err(InstanceError::Duplicate { agent, first, what, cell });
-                    }
-                    Err(pos) => seen.insert(pos, (id, agent)),
+                if let Some((dup, first)) = duplicate
+                    && dup == agent
+                {
+                    return Err(InstanceError::Duplicate { agent, first, what, cell });
                 }
             }
         }

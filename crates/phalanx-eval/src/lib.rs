@@ -74,6 +74,16 @@ pub enum BenchError {
         /// What the parser said.
         message: String,
     },
+    /// A record of `runs.jsonl` that the benchmark's settings do not make, or a repeat.
+    #[error("{path}:{line}: {message}; resume with the same flags, or use another --out")]
+    OtherRun {
+        /// The file.
+        path: String,
+        /// The 1-based line.
+        line: usize,
+        /// Which run.
+        message: String,
+    },
     /// A figure cannot be drawn.
     #[error("drawing {path}: {message}")]
     Plot {

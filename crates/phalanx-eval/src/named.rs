@@ -59,6 +59,14 @@ pub enum MethodError {
         /// The parameter.
         param: String,
     },
+    /// The parameter is out of the method's range (ECBS's bound below 1).
+    #[error("method {spec}: {message}")]
+    Bound {
+        /// The whole name.
+        spec: String,
+        /// Why.
+        message: String,
+    },
     /// The method takes no parameter.
     #[error("method {spec}: {name} takes no parameter")]
     NoParameter {
@@ -151,7 +159,10 @@ impl Method {
                 planner(PlannerChoice::Swarm(swarm::SwarmConfig::default()))
             }
             "ecbs" => {
-                planner(PlannerChoice::Ecbs(ecbs::EcbsConfig { w: number()?.unwrap_or(1.2) }))
+                let config = ecbs::EcbsConfig::new(number()?.unwrap_or(1.2)).map_err(|err| {
+                    MethodError::Bound { spec: spec.to_owned(), message: err.to_string() }
+                })?;
+                planner(PlannerChoice::Ecbs(config))
             }
             "jsa" => {
                 let objective = number()?.map_or(Objective::FormationFirst, Objective::Weighted);
@@ -263,6 +274,11 @@ mod tests {
         assert!(err("dijkstra").starts_with("unknown method dijkstra (cbs, ecbs"));
         assert_eq!(err("ecbs:-1"), "method ecbs:-1: -1 is not a non-negative number");
         assert_eq!(err("swarm:2"), "method swarm:2: swarm takes no parameter");
+        for bound in ["0", "0.5", "0.999"] {
+            let message = err(&format!("ecbs:{bound}"));
+            assert!(message.contains("bound must be a finite number of at least 1"), "{message}");
+        }
+        assert!(Method::named("ecbs:1", &Sources::default()).is_ok());
         let jsa =
             Method::named("jsa:0.5", &Sources { jsa_max_side: Some(32), ..Sources::default() });
         assert_eq!(jsa.unwrap().max_side, Some(32));

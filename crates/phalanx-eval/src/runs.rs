@@ -117,6 +117,38 @@ pub fn read_records(path: &Path) -> Result<Vec<RunRecord>, BenchError> {
     Ok(records)
 }
 
+/// Refuses records of `path` that these settings would not make (a key outside
+/// `expected`: another case, instance or method) or that repeat a run, naming the record's
+/// line (records as [`read_records`] reads them, blank lines skipped).
+///
+/// # Errors
+/// [`BenchError::OtherRun`] for the first such record.
+pub fn check_records(
+    path: &Path,
+    records: &[RunRecord],
+    expected: &BTreeSet<RunKey>,
+) -> Result<(), BenchError> {
+    let text = phalanx_io::read_text(path)?;
+    let lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()).map(|(i, _)| i + 1);
+    let mut seen = BTreeSet::new();
+    for (record, line) in records.iter().zip(lines) {
+        let key = record.key();
+        let message = if !expected.contains(&key) {
+            format!(
+                "a run of case {}, instance {}, method {}, which these settings do not make",
+                key.0, key.1, key.2
+            )
+        } else if seen.contains(&key) {
+            format!("the run of case {}, instance {}, method {} again", key.0, key.1, key.2)
+        } else {
+            seen.insert(key);
+            continue;
+        };
+        return Err(BenchError::OtherRun { path: path.display().to_string(), line, message });
+    }
+    Ok(())
+}
+
 /// The keys of `records`.
 pub fn done(records: &[RunRecord]) -> BTreeSet<RunKey> {
     records.iter().map(RunRecord::key).collect()

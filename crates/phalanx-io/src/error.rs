@@ -30,8 +30,9 @@ pub enum ParseErrorKind {
     /// The text is empty (or only white space).
     #[error("empty file")]
     Empty,
-    /// A header line that is not `type`, `height`, `width` or `map`.
-    #[error("unknown header line {0:?}")]
+    /// A header line that is not `type`, `height`, `width` or `map` (quoted when short and
+    /// plain, else not shown).
+    #[error("unknown header line {0}")]
     UnknownHeader(String),
     /// A header keyword is missing before the `map` line (or the `map` line is missing).
     #[error("missing '{0}' line in the header")]
@@ -50,6 +51,18 @@ pub enum ParseErrorKind {
     )]
     BadSize {
         /// The width given (as the file holds it, negative too).
+        width: i64,
+        /// The height given.
+        height: i64,
+    },
+    /// A YAML instance declares more cells than [`crate::MAX_YAML_CELLS`] (its map is not in
+    /// its text, so the size alone would decide the memory taken).
+    #[error(
+        "map size {width}x{height} is larger than an instance file may declare ({} cells, e.g. 8192x8192)",
+        crate::MAX_YAML_CELLS
+    )]
+    TooManyCells {
+        /// The width given.
         width: i64,
         /// The height given.
         height: i64,
@@ -200,6 +213,12 @@ pub enum Error {
         path: PathBuf,
         /// The extensions that would do.
         expected: &'static str,
+    },
+    /// The file is not a regular file (a device, a pipe, a directory).
+    #[error("{}: not a regular file", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
     },
     /// The map a scenario names exists neither where it says nor beside the scenario.
     #[error("{}:{line}: map file {map:?} not found (tried {})", path.display(), tried.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))]

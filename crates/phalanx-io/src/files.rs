@@ -41,8 +41,13 @@ impl InstanceFormat {
     }
 }
 
-/// Reads a whole text file.
+/// Reads a whole text file; a device, pipe or directory is refused before reading (a read
+/// of `/dev/zero` would never end).
 pub fn read_text(path: &Path) -> Result<String, Error> {
+    let meta = std::fs::metadata(path).map_err(|err| Error::io(path, err))?;
+    if !meta.is_file() {
+        return Err(Error::NotAFile { path: path.to_owned() });
+    }
     std::fs::read_to_string(path).map_err(|err| Error::io(path, err))
 }
 
@@ -60,11 +65,31 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), Error> {
 /// synced and then renamed over `path`. A reader sees the old file or the new one, never a
 /// part; on error the temporary file is removed and an existing file is left as it was. The
 /// file gets the usual permissions of a new file (the umask applies).
+///
+/// An existing target that is a device or a pipe is written in place (a rename would replace
+/// it by a file); a new file in a directory of devices or kernel files (`/dev`, `/proc`,
+/// `/sys`) is refused.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    if let Ok(meta) = std::fs::metadata(path)
+        && !meta.is_file()
+        && !meta.is_dir()
+    {
+        let mut file = std::fs::OpenOptions::new().write(true).open(path)?;
+        file.write_all(bytes)?;
+        return file.flush();
+    }
     let dir = match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
     };
+    if let Ok(real) = dir.canonicalize()
+        && ["/dev", "/proc", "/sys"].iter().any(|system| real.starts_with(system))
+    {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("{} holds devices or kernel files, not output files", real.display()),
+        ));
+    }
     let mut builder = tempfile::Builder::new();
     builder.prefix(".phalanx-").suffix(".tmp");
     // The temporary file becomes the output: give it the permissions any new file gets
@@ -133,7 +158,8 @@ fn find_map(scen_path: &Path, map: &str) -> Result<PathBuf, Error> {
             tried.push(beside);
         }
     }
-    match tried.iter().find(|p| p.is_file()) {
+    // A path that exists but is no file is taken, and refused as such when read.
+    match tried.iter().find(|p| p.exists()) {
         Some(found) => Ok(found.clone()),
         None => Err(Error::MapNotFound {
             path: scen_path.to_owned(),

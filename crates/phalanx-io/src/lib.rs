@@ -29,4 +29,6 @@ pub use files::{
 };
 pub use map::{MovingAiMap, is_passable};
 pub use scen::{ScenEntry, Scenario, instance_from_scen};
-pub use yaml::{PlanStats, ScheduleEntry, YamlAgent, YamlInstance, YamlPlan, agent_name};
+pub use yaml::{
+    MAX_YAML_CELLS, PlanStats, ScheduleEntry, YamlAgent, YamlInstance, YamlPlan, agent_name,
+};

@@ -59,6 +59,15 @@ pub(crate) fn numbered_lines(text: &str) -> impl Iterator<Item = (usize, &str)> 
         .map(|(i, l)| (i + 1, l))
 }
 
+/// A header line as an error may show it: a short `word value` of letters and digits (a
+/// misspelt keyword) as it is, anything else not at all, so that a file of another kind
+/// named as a map (`/etc/passwd`) does not have its first line printed.
+fn shown_header(content: &str) -> String {
+    let plain = content.len() <= 32
+        && content.chars().all(|c| c.is_ascii_alphanumeric() || c == ' ' || c == '\t');
+    if plain { format!("{content:?}") } else { "(not shown: no MovingAI map starts so)".to_owned() }
+}
+
 impl MovingAiMap {
     /// Parses the text of a `.map` file. A missing `type` line reads as `octile`.
     pub fn parse(text: &str) -> Result<MovingAiMap, ParseError> {
@@ -97,7 +106,7 @@ impl MovingAiMap {
                 _ => {
                     return Err(ParseError::new(
                         line,
-                        ParseErrorKind::UnknownHeader(content.to_owned()),
+                        ParseErrorKind::UnknownHeader(shown_header(content)),
                     ));
                 }
             }

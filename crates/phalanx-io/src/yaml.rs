@@ -7,7 +7,7 @@
 
 use std::fmt::{self, Write as _};
 
-use phalanx_core::{Cell, Grid, Instance, Plan};
+use phalanx_core::{Cell, Grid, Instance, InstanceError, Plan};
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 use serde_yaml::Value;
@@ -250,10 +250,18 @@ fn yaml_name(name: &str) -> String {
     serde_yaml::to_string(name).map_or_else(|_| format!("{name:?}"), |s| s.trim_end().to_owned())
 }
 
+/// The most cells a YAML instance's map may have (8192 × 8192): its free cells are not in
+/// its text, so a file of a hundred bytes could otherwise ask for gigabytes (the grid, the
+/// components, the distance maps).
+pub const MAX_YAML_CELLS: u64 = 1 << 26;
+
 impl YamlInstance {
     /// Parses a libMRP instance. Checks the map size and that obstacles are inside the map;
     /// the agents are checked by [`YamlInstance::to_instance`].
     pub fn parse(text: &str) -> Result<YamlInstance, ParseError> {
+        // A byte-order mark is no document of its own (serde_yaml reads one before a
+        // document's first line as the end of an empty one).
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let dto = instance_dto(text)?;
         let map_line = key_lines(text, "dimensions").first().copied().unwrap_or(1);
         let [width, height] = dto.map.dimensions;
@@ -261,6 +269,9 @@ impl YamlInstance {
         if !(1..=max).contains(&width) || !(1..=max).contains(&height) || width * height >= 1 << 32
         {
             return Err(ParseError::new(map_line, ParseErrorKind::BadSize { width, height }));
+        }
+        if width * height > MAX_YAML_CELLS as i64 {
+            return Err(ParseError::new(map_line, ParseErrorKind::TooManyCells { width, height }));
         }
         let (width, height) = (width as u32, height as u32);
         let obstacle_line = key_lines(text, "obstacles").first().copied().unwrap_or(map_line);
@@ -273,13 +284,19 @@ impl YamlInstance {
             }
             obstacles.push(c);
         }
-        let name_lines = key_lines(text, "name");
         let agents_line = key_lines(text, "agents").first().copied().unwrap_or(1);
         let n_agents = dto.agents.len();
+        // The cap before any work per agent: a file of a million agents is refused at once.
+        if n_agents > usize::from(u16::MAX) {
+            let kind = ParseErrorKind::Instance(InstanceError::TooManyAgents(n_agents));
+            return Err(ParseError::new(agents_line, kind));
+        }
+        let name_lines = key_lines(text, "name");
+        let mut names = std::collections::BTreeSet::new();
         let mut agents: Vec<YamlAgent> = Vec::with_capacity(n_agents);
         for (i, a) in dto.agents.into_iter().enumerate() {
             let line = if name_lines.len() == n_agents { name_lines[i] } else { agents_line };
-            if agents.iter().any(|b| b.name == a.name) {
+            if !names.insert(a.name.clone()) {
                 return Err(ParseError::new(line, ParseErrorKind::DuplicateName(a.name)));
             }
             agents.push(YamlAgent {

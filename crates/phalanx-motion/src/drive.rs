@@ -63,8 +63,21 @@ pub fn drive(
         (None, _) => 1.0,
     };
     let required = |path: &Path| (0..horizon).map(|k| step_len(path, k) / dt).fold(0.0, f64::max);
+    let sub_steps = (horizon as f64 + 1.0) * (dt / config.sub_step).ceil() * paths.len() as f64;
+    let samples = (horizon as f64 + 1.0) * dt * config.sample_rate * paths.len() as f64;
+    if sub_steps > MAX_SUB_STEPS as f64 || samples > MAX_SUB_STEPS as f64 {
+        return Err(MotionError::TooLong { sub_steps, samples, limit: MAX_SUB_STEPS });
+    }
     Ok(Run::new(instance, config, &paths, dt).simulate(horizon, &required))
 }
+
+/// The most integration sub-steps, and the most trajectory samples, of one run (all cars
+/// together): beyond, the run would take minutes and gigabytes.
+pub const MAX_SUB_STEPS: u64 = 50_000_000;
+
+/// The shortest and longest lengths in metres (wheelbase, body, cell): within them the
+/// geometry's tolerances hold.
+pub const LENGTH_RANGE: (f64, f64) = (1e-3, 1e4);
 
 /// Of two errors, the one at the earlier step, then the lower agent.
 fn earlier(kept: Option<MotionError>, new: MotionError) -> MotionError {
@@ -122,6 +135,17 @@ fn check(config: &MotionConfig) -> Result<(), MotionError> {
         });
     }
     above_zero("speed_gain", config.tracker.speed_gain)?;
+    for (name, value) in [
+        ("wheelbase", car.wheelbase),
+        ("length", car.length),
+        ("width", car.width),
+        ("cell", config.cell),
+    ] {
+        if !(LENGTH_RANGE.0..=LENGTH_RANGE.1).contains(&value) {
+            let expected = "a length from 0.001 to 10000 m";
+            return Err(MotionError::Parameter { name, value, expected });
+        }
+    }
     if car.reach() > config.cell / 2.0 {
         return Err(MotionError::CarTooLarge {
             length: car.length,

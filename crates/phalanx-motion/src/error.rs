@@ -21,6 +21,18 @@ pub enum MotionError {
         /// The range it must be in.
         expected: &'static str,
     },
+    /// The run would take too many integration sub-steps or samples.
+    #[error(
+        "the run would take {sub_steps:.3e} integration sub-steps and {samples:.3e} samples (all cars together), more than {limit}: make the step duration or the sample rate smaller, or the sub-step longer"
+    )]
+    TooLong {
+        /// Sub-steps: (plan steps + 1) × ⌈step duration / sub-step⌉ × cars.
+        sub_steps: f64,
+        /// Samples: (plan steps + 1) × step duration × sample rate × cars.
+        samples: f64,
+        /// The most of either.
+        limit: u64,
+    },
     /// The car's body does not stay in its cell whatever its heading when its rear axle is on
     /// the cell's centre, so the plan's separation of agents does not carry over.
     #[error(
@@ -104,7 +116,9 @@ impl MotionError {
             | MotionError::TooTight { agent, step, .. }
             | MotionError::TooFast { agent, step, .. } => Some((agent, step)),
             MotionError::InvalidPlan(ref violation) => violation.agent.map(|a| (a, violation.step)),
-            MotionError::Parameter { .. } | MotionError::CarTooLarge { .. } => None,
+            MotionError::Parameter { .. }
+            | MotionError::CarTooLarge { .. }
+            | MotionError::TooLong { .. } => None,
         }
     }
 }

@@ -32,7 +32,7 @@ mod error;
 mod geometry;
 mod path;
 
-pub use drive::drive;
+pub use drive::{LENGTH_RANGE, MAX_SUB_STEPS, drive};
 pub use error::MotionError;
 
 use serde::Serialize;

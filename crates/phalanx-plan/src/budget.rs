@@ -25,9 +25,11 @@ impl Budget {
         Budget { time_limit: None, node_limit: None }
     }
 
-    /// A wall-clock limit of `seconds` and no node limit.
+    /// A wall-clock limit of `seconds` and no node limit; a limit too long for a `Duration`
+    /// (or infinite) is no limit, a negative or NaN one is 0.
     pub fn seconds(seconds: f64) -> Budget {
-        Budget { time_limit: Some(Duration::from_secs_f64(seconds.max(0.0))), node_limit: None }
+        let limit = Duration::try_from_secs_f64(seconds.max(0.0)).ok();
+        Budget { time_limit: limit, node_limit: None }
     }
 
     /// The same budget with a node limit.

@@ -33,6 +33,32 @@ pub struct EcbsConfig {
     pub w: f64,
 }
 
+/// A suboptimality bound ECBS cannot run with: below 1, or not a finite number.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BadBound(pub f64);
+
+impl std::fmt::Display for BadBound {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "ECBS's suboptimality bound must be a finite number of at least 1, not {}",
+            self.0
+        )
+    }
+}
+
+impl std::error::Error for BadBound {}
+
+impl EcbsConfig {
+    /// The settings with bound `w`.
+    ///
+    /// # Errors
+    /// [`BadBound`] unless `w` is finite and at least 1.
+    pub fn new(w: f64) -> Result<EcbsConfig, BadBound> {
+        if w.is_finite() && w >= 1.0 { Ok(EcbsConfig { w }) } else { Err(BadBound(w)) }
+    }
+}
+
 impl Default for EcbsConfig {
     fn default() -> EcbsConfig {
         EcbsConfig { w: 1.2 }
@@ -41,6 +67,9 @@ impl Default for EcbsConfig {
 
 /// ECBS, bounded suboptimal (sum of costs at most `w` times optimal). Nodes counted against
 /// the budget: high-level nodes expanded.
+///
+/// # Panics
+/// If `config.w` is below 1 ([`EcbsConfig::new`] refuses such a bound).
 pub fn solve(instance: &Instance, config: &EcbsConfig, budget: &Budget) -> PlanReport {
     assert!(config.w >= 1.0, "ECBS needs w >= 1, got {}", config.w);
     let clock = budget.start();
@@ -119,7 +148,7 @@ fn run(
         let bound = FocalOrder::bound(lb_min, w);
         // FOCAL: nodes with cost <= bound; pick fewest conflicts, then cost, then newest.
         let idx = by_cost
-            .range(..(bound + 1, 0, 0))
+            .range(..=(bound, u32::MAX, u32::MAX))
             .min_by_key(|&&(cost, n_conflicts, idx)| (n_conflicts, cost, std::cmp::Reverse(idx)))
             .map(|&(_, _, idx)| idx)
             // The node with the least bound always qualifies (each path costs at most `w`

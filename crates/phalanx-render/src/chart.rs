@@ -117,9 +117,35 @@ pub enum Marker {
 /// # Errors
 /// If plotters fails to draw (a range that is empty, or not positive on a log axis).
 pub fn chart_svg(figure: &Figure) -> Result<String, RenderError> {
+    for panel in &figure.panels {
+        for (name, axis) in [("horizontal", &panel.x), ("vertical", &panel.y)] {
+            check_range(axis.range).map_err(|why| {
+                RenderError::Raster(format!(
+                    "{}: the {name} axis from {} to {} {why}",
+                    panel.title, axis.range.0, axis.range.1
+                ))
+            })?;
+        }
+    }
     let mut out = String::new();
     draw(figure, &mut out).map_err(|err| RenderError::Raster(err.to_string()))?;
     Ok(out)
+}
+
+/// The largest magnitude an axis may reach: beyond, the tick arithmetic of the plotting
+/// library overflows or never ends.
+const MAX_AXIS: f64 = 1e15;
+
+/// Refuses an axis range the plotting library cannot divide into ticks: not finite, beyond
+/// ±[`MAX_AXIS`], or narrower than a billionth of its magnitude (ticks that do not move).
+fn check_range((lo, hi): (f64, f64)) -> Result<(), &'static str> {
+    if !(lo.abs() <= MAX_AXIS && hi.abs() <= MAX_AXIS) {
+        Err("reaches beyond ±1e15")
+    } else if hi > lo && hi - lo <= 1e-9 * lo.abs().max(hi.abs()) {
+        Err("is too narrow for its magnitude to draw")
+    } else {
+        Ok(())
+    }
 }
 
 type DrawResult = Result<(), Box<dyn std::error::Error>>;

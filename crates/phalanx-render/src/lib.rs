@@ -42,7 +42,7 @@ use thiserror::Error;
 pub use cars::{CarFrame, CarScene, Pose, car_svg, render_cars};
 pub use curves::{Curve, Line, training_curves};
 pub use raster::GIF_MAX_FRAMES;
-pub use scene::{Crop, Options, Scene};
+pub use scene::{Crop, MAX_FPS, MAX_FRAME_CELLS, MAX_HOLD_S, MIN_FPS, Options, Scene};
 
 use scene::Layout;
 
@@ -84,11 +84,36 @@ pub enum RenderError {
         /// The plan's last step.
         last: usize,
     },
-    /// Frames per second that are not a positive number.
-    #[error("frames per second {0} must be a positive number")]
+    /// Frames per second out of [`MIN_FPS`, `MAX_FPS`].
+    #[error("frames per second {0} must be a number from {MIN_FPS} to {MAX_FPS}")]
     Fps(f64),
-    /// A hold that is not a non-negative number of seconds.
-    #[error("hold {0} s must be a non-negative number of seconds")]
+    /// An animation that would take minutes to draw: [`MAX_FRAME_CELLS`] exceeded.
+    #[error(
+        "the animation would draw {frames} frames of {cells} cells each, more than {} cells in all: lower --max-frames, or follow the team (--crop follow)",
+        MAX_FRAME_CELLS
+    )]
+    TooMuch {
+        /// Frames.
+        frames: usize,
+        /// Cells per frame.
+        cells: u64,
+    },
+    /// An agent of the plan outside the map: nowhere to draw it.
+    #[error("step {step}, agent {agent}: {cell} is outside the {width}x{height} map")]
+    Outside {
+        /// The step.
+        step: usize,
+        /// The agent.
+        agent: usize,
+        /// Where the plan puts it.
+        cell: phalanx_core::Cell,
+        /// The map's width.
+        width: u32,
+        /// The map's height.
+        height: u32,
+    },
+    /// A hold that is not a number of seconds from 0 to [`MAX_HOLD_S`].
+    #[error("hold {0} s must be a number of seconds from 0 to {MAX_HOLD_S}")]
     Hold(f64),
     /// An id prefix with characters other than ASCII letters, digits, `-` and `_`.
     #[error("id prefix {0:?} may hold only ASCII letters, digits, - and _")]
@@ -180,6 +205,7 @@ pub fn render(
 /// See [`RenderError`].
 pub fn animated_svg(scene: &Scene<'_>, options: &Options) -> Result<String, RenderError> {
     let layout = Layout::of(scene, options, options.max_frames)?;
+    layout.check_work()?;
     let slots = animation_slots(&layout, options);
     let mode = svg::Mode::Animate { slots, fps: options.fps };
     Ok(svg::document(scene, &layout, options, mode, svg::Edges::Smooth))
@@ -229,6 +255,7 @@ pub fn rgba(
 /// See [`RenderError`].
 pub fn gif(scene: &Scene<'_>, options: &Options) -> Result<Vec<u8>, RenderError> {
     let layout = Layout::of(scene, options, options.max_frames.min(GIF_MAX_FRAMES))?;
+    layout.check_work()?;
     raster::gif(scene, &layout, options, None)
 }
 

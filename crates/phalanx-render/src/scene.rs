@@ -47,6 +47,13 @@ pub const MIN_WINDOW: u32 = 24;
 /// bounding box's centre, and agents far from it leave the picture.
 pub const MAX_WINDOW: u32 = 96;
 
+/// The fewest frames per second an animation may have (a GIF's longest frame is 655 s).
+pub const MIN_FPS: f64 = 0.1;
+/// The most frames per second an animation may have (a GIF's shortest frame is 10 ms).
+pub const MAX_FPS: f64 = 100.0;
+/// The longest hold of the last frame, in seconds.
+pub const MAX_HOLD_S: f64 = 60.0;
+
 /// Drawing options.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
@@ -105,6 +112,10 @@ pub(crate) struct Layout {
     pub(crate) cell_px: f64,
 }
 
+/// The most cells an animation draws, frames times the cells each shows (a minute or so of
+/// drawing): a whole 4096² map is drawn in a few frames, not 600.
+pub const MAX_FRAME_CELLS: u64 = 100_000_000;
+
 /// Pixels the map view aims at along its longer side.
 const VIEW_PX: f64 = 480.0;
 
@@ -131,6 +142,15 @@ impl Layout {
         let cell_px = cell_px(&windows);
         Ok(Layout { frames, windows, loss, ghosts, cell_px })
     }
+
+    /// Refuses an animation of this layout that would draw more than [`MAX_FRAME_CELLS`].
+    pub(crate) fn check_work(&self) -> Result<(), RenderError> {
+        let cells = (self.windows[0].w * self.windows[0].h) as u64;
+        if self.frames.len() as u64 * cells > MAX_FRAME_CELLS {
+            return Err(RenderError::TooMuch { frames: self.frames.len(), cells });
+        }
+        Ok(())
+    }
 }
 
 /// Pixels per cell for frames showing `windows` (all of one size): the longer side of the
@@ -156,15 +176,22 @@ fn check(scene: &Scene<'_>, options: &Options) -> Result<(), RenderError> {
     {
         return Err(RenderError::Choices { len: choices.len(), n_agents: plan.n_agents() });
     }
-    if !(options.fps.is_finite() && options.fps > 0.0) {
+    if !(MIN_FPS..=MAX_FPS).contains(&options.fps) {
         return Err(RenderError::Fps(options.fps));
+    }
+    let grid = instance.grid();
+    for (step, cells) in plan.steps().enumerate() {
+        if let Some(agent) = cells.iter().position(|&cell| !grid.in_bounds(cell)) {
+            let (width, height) = (grid.width(), grid.height());
+            return Err(RenderError::Outside { step, agent, cell: cells[agent], width, height });
+        }
     }
     check_options(options)
 }
 
 /// Refuses a hold or an id prefix that cannot be drawn (every kind of picture).
 pub(crate) fn check_options(options: &Options) -> Result<(), RenderError> {
-    if !(options.hold_s.is_finite() && options.hold_s >= 0.0) {
+    if !(0.0..=MAX_HOLD_S).contains(&options.hold_s) {
         return Err(RenderError::Hold(options.hold_s));
     }
     if !options.id_prefix.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {

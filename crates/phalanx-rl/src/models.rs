@@ -73,6 +73,16 @@ pub enum ModelError {
         /// What is wrong.
         why: String,
     },
+    /// The file holds another kind of policy than the one asked for.
+    #[error("{} holds {found}, not the {expected} policy asked for", file.display())]
+    WrongKind {
+        /// The file read.
+        file: PathBuf,
+        /// What the file holds, and how that is known.
+        found: String,
+        /// The policy asked for.
+        expected: String,
+    },
     /// The meta policy does not fit its low level.
     #[error("the meta policy {}", file.display())]
     Hierarchy {
@@ -134,7 +144,72 @@ pub fn load_with_header(
     };
     let (policy, header) = load_policy_any(&file, &Device::flex())
         .map_err(|source| ModelError::Load { name: name.to_owned(), source })?;
+    check_kind(&file, &header, name)?;
     Ok((policy, header, file))
+}
+
+/// The shipped policies by name, and what each is: the per-agent low-level networks (five
+/// actions) share one shape, the meta policy (two actions) records its low level, the
+/// centralised baseline reads the whole team.
+const KINDS: [(&str, &str); 5] = [
+    ("pathfinding", "low-level"),
+    ("formation", "low-level"),
+    ("e2e", "low-level"),
+    ("meta", "meta"),
+    ("ctce", "centralised"),
+];
+
+/// What the network of `header` is, as its header tells: `meta`, `centralised` or
+/// `low-level`.
+fn kind_of(header: &Header) -> &'static str {
+    if header.meta.is_some() || header.net_config.n_actions == 2 {
+        "meta"
+    } else if header.net_config.centralised {
+        "centralised"
+    } else {
+        "low-level"
+    }
+}
+
+/// Refuses the policy file `file` (its header `header`) for the policy `name` when it holds
+/// another kind: a network of another kind than `name`'s (a meta policy given as the
+/// path-finding policy), or, beside a `model.json` (as `models/` ships them), one whose
+/// `model.json` names another of the shipped policies. Names not in the list (a low level
+/// named by its directory) are not checked.
+///
+/// # Errors
+/// [`ModelError::WrongKind`], naming the file, what it holds and what was asked for.
+pub fn check_kind(file: &Path, header: &Header, name: &str) -> Result<(), ModelError> {
+    let Some(&(_, expected)) = KINDS.iter().find(|(it, _)| *it == name) else {
+        return Ok(());
+    };
+    let wrong = |found: String| ModelError::WrongKind {
+        file: file.to_path_buf(),
+        found,
+        expected: name.to_owned(),
+    };
+    let found = kind_of(header);
+    if expected == "meta" && header.meta.is_none() {
+        return Err(ModelError::NotMeta { file: file.to_path_buf() });
+    }
+    if found != expected {
+        let net = &header.net_config;
+        return Err(wrong(format!(
+            "a {found} policy ({} actions, a vector of {} values)",
+            net.n_actions, net.env_vec
+        )));
+    }
+    let card = file.with_file_name("model.json");
+    let recorded = std::fs::read_to_string(&card)
+        .ok()
+        .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
+        .and_then(|json| json["policy"].as_str().map(str::to_owned));
+    match recorded {
+        Some(other) if other != name && KINDS.iter().any(|(it, _)| *it == other) => {
+            Err(wrong(format!("the {other} policy (as {} says)", card.display())))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Loads the policy `name` from `path` or the shipped model, with its reference.

@@ -94,6 +94,15 @@ pub enum NetError {
     /// The others did not all join in time.
     #[error("{0}")]
     Join(String),
+    /// An agent's id is outside the team of the world it joined (told as soon as the world
+    /// is seen, not at the end of the join timeout).
+    #[error("agent {id}: the world's team has {n} agents (ids 0 to {})", n.saturating_sub(1))]
+    NotInTeam {
+        /// The agent's id.
+        id: u16,
+        /// The world's team size.
+        n: u16,
+    },
 }
 
 fn zenoh_error(err: impl std::fmt::Display) -> NetError {
@@ -261,6 +270,9 @@ impl ZenohTransport {
                         (missing.is_empty().then_some(n), format!("agents not ready: {missing:?}"))
                     }
                     (Role::Agent(_), None) => (None, "no world".to_owned()),
+                    (Role::Agent(id), Some(n)) if id >= n => {
+                        return Err(NetError::NotInTeam { id, n });
+                    }
                     (Role::Agent(_), Some(n)) => {
                         let missing: Vec<u16> =
                             (0..n).filter(|i| !seen.alive.contains(i)).collect();

@@ -7,9 +7,11 @@ use std::process::Output;
 use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
+mod hostile;
 mod kill;
 mod models;
 mod motion;
+mod numeric_flags;
 mod processes;
 mod render;
 mod threads;

@@ -355,3 +355,31 @@ fn world_and_agents_on_two_hosts_plan_what_the_batched_policy_plans() {
         world_bytes / (3 * steps.max(1))
     );
 }
+
+#[test]
+fn an_agent_outside_the_team_or_with_an_unreachable_world_is_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("i.yaml"), crate::INSTANCE).unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let prefix = format!("hostile{}", free_port());
+    let world = bin()
+        .args(["world", "i.yaml", "--listen", &endpoint, "--prefix", &prefix])
+        .args(["--join-timeout", "60"])
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let _world = Children(vec![world]);
+    let started = Instant::now();
+    let args = ["agent", "--id", "5", "--connect", &endpoint, "--prefix", &prefix];
+    let (_, stderr) = check(&phalanx(d, &[&args[..], &["--join-timeout", "30"]].concat()), 2);
+    assert!(stderr.contains("agent 5: the world's team has 2 agents (ids 0 to 1)"), "{stderr}");
+    assert!(started.elapsed() < Duration::from_secs(20), "not the join timeout");
+
+    for address in ["tcp/999.1.1.1:1", "tcp/127.0.0.1:99999", "tcp/127.0.0.1"] {
+        let (_, stderr) = check(&phalanx(d, &["agent", "--id", "0", "--connect", address]), 2);
+        assert!(stderr.contains(address) && stderr.contains("--connect"), "{stderr}");
+    }
+}

@@ -177,6 +177,16 @@ fn settings_out_of_range_are_refused() {
     assert!(err.to_string().starts_with("max_speed = NaN"), "{err}");
     let err = refused(&|c| c.car.length = 0.1);
     assert!(err.to_string().starts_with("length = 0.1 is out of range"), "{err}");
+    let err = refused(&|c| c.cell = 1e50);
+    assert!(err.to_string().ends_with("expected a length from 0.001 to 10000 m"), "{err}");
+    let err = refused(&|c| c.car.wheelbase = 1e-20);
+    assert!(err.to_string().starts_with("wheelbase = 0.0000000"), "{err}");
+    // Each setting in range, but a run of 10¹⁰ sub-steps: refused before any is taken.
+    let err = refused(&|c| {
+        c.step_duration = Some(1e4);
+        c.sub_step = 1e-6;
+    });
+    assert!(matches!(err, MotionError::TooLong { .. }), "{err:?}");
     let err = refused(&|c| c.cell = 0.5);
     assert!(matches!(err, MotionError::CarTooLarge { .. }), "{err:?}");
     assert!(err.to_string().contains("does not fit a 0.5 m cell"), "{err}");

@@ -190,11 +190,14 @@ impl Order for FocalOrder {
         }
         let (old_bound, new_bound) =
             (Self::bound(self.f_min, self.w), Self::bound(new_min, self.w));
-        for &(f, g, i) in self.open.range((old_bound + 1, Reverse(u32::MAX), 0)..) {
-            if f > new_bound {
-                break;
+        // A bound at u32::MAX (a huge `w`) has admitted every node already.
+        if let Some(first) = old_bound.checked_add(1) {
+            for &(f, g, i) in self.open.range((first, Reverse(u32::MAX), 0)..) {
+                if f > new_bound {
+                    break;
+                }
+                self.focal.insert((nodes[i as usize].conflicts, f, g, i));
             }
-            self.focal.insert((nodes[i as usize].conflicts, f, g, i));
         }
         self.f_min = new_min;
     }

@@ -311,3 +311,18 @@ fn prioritised_a_star_says_incomplete_where_its_order_fails() {
     let report = astar::solve(&inst, &order, &Budget::seconds(1.0));
     validate(&inst, &report.result.unwrap()).unwrap();
 }
+
+#[test]
+fn ecbs_takes_any_bound_of_at_least_1_and_budgets_any_length() {
+    for w in [0.0, 0.5, 0.999, f64::NAN, f64::INFINITY] {
+        assert!(ecbs::EcbsConfig::new(w).is_err(), "{w}");
+    }
+    // A bound so large that FOCAL's cost bound saturates, and a limit beyond a `Duration`.
+    let config = phalanx_gen::GenConfig { size: 20, density: 0.15, n_agents: 5, seed: 1, fov: 9 };
+    let inst = phalanx_gen::generate(&config).unwrap();
+    let budget = Budget::seconds(1e300);
+    assert_eq!(budget.time_limit, None, "beyond a Duration: no limit");
+    let report = ecbs::solve(&inst, &ecbs::EcbsConfig::new(1e300).unwrap(), &budget);
+    let plan = report.result.expect("ecbs solves");
+    validate(&inst, &plan).expect("valid ecbs plan");
+}
