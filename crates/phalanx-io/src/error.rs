@@ -55,17 +55,18 @@ pub enum ParseErrorKind {
         /// The height given.
         height: i64,
     },
-    /// A YAML instance declares more cells than [`crate::MAX_YAML_CELLS`] (its map is not in
-    /// its text, so the size alone would decide the memory taken).
+    /// A YAML instance declares more cells than it may (its map is not in its text, so the
+    /// size alone would decide the memory taken).
     #[error(
-        "map size {width}x{height} is larger than an instance file may declare ({} cells, e.g. 8192x8192)",
-        crate::MAX_YAML_CELLS
+        "map size {width}x{height} is larger than an instance file may declare ({max} cells, e.g. 8192x8192)"
     )]
     TooManyCells {
         /// The width given.
         width: i64,
         /// The height given.
         height: i64,
+        /// The most cells.
+        max: u64,
     },
     /// The map ends before `height` rows.
     #[error("map has {found} rows, expected {expected}")]

@@ -271,7 +271,8 @@ impl YamlInstance {
             return Err(ParseError::new(map_line, ParseErrorKind::BadSize { width, height }));
         }
         if width * height > MAX_YAML_CELLS as i64 {
-            return Err(ParseError::new(map_line, ParseErrorKind::TooManyCells { width, height }));
+            let kind = ParseErrorKind::TooManyCells { width, height, max: MAX_YAML_CELLS };
+            return Err(ParseError::new(map_line, kind));
         }
         let (width, height) = (width as u32, height as u32);
         let obstacle_line = key_lines(text, "obstacles").first().copied().unwrap_or(map_line);
