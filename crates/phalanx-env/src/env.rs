@@ -230,6 +230,10 @@ pub struct Env {
 }
 
 impl Env {
+    /// How many agents ahead a writer of every agent's channels prefetches the rows they
+    /// read ([`Env::prefetch_view`]).
+    pub const PREFETCH_AHEAD: usize = 2;
+
     /// An environment with no episode yet; call [`Env::reset`].
     pub fn new(config: EnvConfig) -> Result<Env, EnvError> {
         if config.fov < 3 || config.fov.is_multiple_of(2) {
@@ -741,9 +745,50 @@ impl Env {
             .zip(out.action_mask.chunks_exact_mut(N_ACTIONS))
             .enumerate()
         {
+            self.prefetch_view(i + Env::PREFETCH_AHEAD);
             self.write_grid(i, grid);
             self.write_vector(i, vector);
             self.write_mask(i, clip, mask);
+        }
+    }
+
+    /// Asks the processor to start loading the rows agent `agent`'s channels will read (its
+    /// distance map's and the padded maps' in its window), without waiting for
+    /// them: a writer of every agent's channels calls it a few agents ahead, so that those
+    /// loads overlap the writing instead of stalling it (the distance maps of many
+    /// environments do not stay in the cache). Only a hint: nothing observable changes, and
+    /// an agent index past the last one is ignored.
+    #[inline]
+    pub fn prefetch_view(&self, agent: usize) {
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = agent;
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let Some(&p) = self.pos_idx.get(agent) else { return };
+            let (f, pw) = (self.fov, self.pw);
+            let corner = p as usize - self.pad * pw - self.pad;
+            let (dist, size): (*const i8, usize) = match &self.dist {
+                DistMaps::Narrow(maps) => (maps[agent * self.n_padded..].as_ptr().cast(), 2),
+                DistMaps::Wide(maps) => (maps[agent * self.n_padded..].as_ptr().cast(), 4),
+            };
+            let occ = self.occ_obs.as_ptr().cast::<i8>();
+            let blocked = self.blocked_obs.as_ptr().cast::<i8>();
+            let parked = self.parked.as_ptr().cast::<i8>();
+            for r in 0..f {
+                let at = corner + r * pw;
+                // SAFETY: a prefetch never faults and reads nothing the program sees; the
+                // addresses are those of the window's rows, inside the maps.
+                unsafe {
+                    _mm_prefetch::<_MM_HINT_T0>(dist.wrapping_add(at * size));
+                    _mm_prefetch::<_MM_HINT_T0>(dist.wrapping_add((at + f - 1) * size));
+                    _mm_prefetch::<_MM_HINT_T0>(occ.wrapping_add(at * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(occ.wrapping_add((at + f - 1) * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(blocked.wrapping_add(at * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(blocked.wrapping_add((at + f - 1) * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(parked.wrapping_add(at));
+                }
+            }
         }
     }
 
