@@ -123,7 +123,11 @@ def main() -> None:
     both = sub.add_parser("compare")
     both.add_argument("--phalanx-python", required=True)
     both.add_argument("--pogema-python", required=True)
-    both.add_argument("--phalanx-bin", required=True)
+    both.add_argument("--phalanx-bin", default=None,
+                      help="the phalanx binary, for `phalanx sim` (left out: not measured)")
+    both.add_argument("--baseline-python", default=None,
+                      help="another build of phalanx (an interpreter that has it): its vector is "
+                      "measured too, interleaved, as baseline_*")
     both.add_argument("--rounds", type=int, default=5)
     both.add_argument("--steps", type=int, default=20000)
     both.add_argument("--num-envs", default="256",
@@ -164,18 +168,26 @@ def main() -> None:
               "--num-envs", str(n), "--threads", str(t)])
             for n in num_envs for t in threads
         ]
+        if args.baseline_python:
+            runs += [
+                (f"baseline_{name}", args.baseline_python, extra)
+                for name, _, extra in list(runs) if name.startswith("vector")
+            ]
         rates: dict[str, list[float]] = {name: [] for name, _, _ in runs}
-        rates["sim"] = []
+        if args.phalanx_bin:
+            rates["sim"] = []
         for r in range(args.rounds):
             for backend, python, extra in runs:
-                backend_flag = [] if backend.startswith("vector") else ["--backend", backend]
+                vector = backend.startswith(("vector", "baseline"))
+                backend_flag = [] if vector else ["--backend", backend]
                 out = subprocess.run(
                     [python, __file__, "measure", *backend_flag, *flags, *extra],
                     check=True, capture_output=True, text=True,
                 )
                 rates[backend].append(json.loads(out.stdout)["agent_steps_per_s"])
-            rates["sim"].append(measure_sim(args.phalanx_bin, setting["agents"], setting["size"],
-                                            setting["density"], args.steps))
+            if args.phalanx_bin:
+                rates["sim"].append(measure_sim(args.phalanx_bin, setting["agents"],
+                                                setting["size"], setting["density"], args.steps))
             print(f"{setting} round {r}: " + ", ".join(f"{k} {v[-1]:.3g}" for k, v in rates.items()),
                   file=sys.stderr)
         def median_ratio(a: str, b: str) -> float:
@@ -188,7 +200,8 @@ def main() -> None:
             "median_ratio_over_pogema": {
                 k: median_ratio(k, "pogema") for k in rates if k != "pogema"
             },
-            "median_ratio_sim_over_phalanx_python": median_ratio("sim", "phalanx"),
+            **({"median_ratio_sim_over_phalanx_python": median_ratio("sim", "phalanx")}
+               if args.phalanx_bin else {}),
         }))
 
 

@@ -137,9 +137,11 @@ impl Instance {
                 }
             }
         }
-        let components = components(&grid, &goals);
+        let (components, pw) = components(&grid, &goals);
+        // Padded index of an in-bounds cell.
+        let at = |c: Cell| (c.y as usize + 1) * pw + c.x as usize + 1;
         for (agent, (&start, &goal)) in starts.iter().zip(&goals).enumerate() {
-            if components[grid.id(start).index()] != components[grid.id(goal).index()] {
+            if components[at(start)] != components[at(goal)] {
                 return Err(InstanceError::Unreachable { agent, start, goal });
             }
         }
@@ -183,32 +185,44 @@ impl Instance {
     }
 }
 
-/// Labels the connected free regions that contain a goal (one BFS per unlabelled goal);
-/// cells in no such region keep label 0.
-fn components(grid: &Grid, goals: &[Cell]) -> Vec<u32> {
-    let mut label = vec![0u32; grid.n_cells()];
-    let mut queue = Vec::new();
+/// Labels the connected free regions that contain a goal (one flood fill per unlabelled
+/// goal) on the grid padded by one blocked cell on every side, and returns the labels with
+/// the padded width: label 0 for a free cell in no such region, `u32::MAX` for a blocked or
+/// padding cell. The padding spares the fill every bounds check.
+fn components(grid: &Grid, goals: &[Cell]) -> (Vec<u32>, usize) {
+    const BLOCKED: u32 = u32::MAX;
+    let (w, h) = (grid.width() as usize, grid.height() as usize);
+    let pw = w + 2;
+    let mut label = vec![BLOCKED; pw * (h + 2)];
+    for (y, row) in label.chunks_exact_mut(pw).skip(1).take(h).enumerate() {
+        for (x, slot) in row[1..=w].iter_mut().enumerate() {
+            let id = y * w + x;
+            if grid.blocked_word(id >> 6) >> (id & 63) & 1 == 0 {
+                *slot = 0;
+            }
+        }
+    }
+    let mut stack = Vec::new();
     let mut next = 0;
     for &goal in goals {
-        let gid = grid.id(goal).index();
+        let gid = (goal.y as usize + 1) * pw + goal.x as usize + 1;
         if label[gid] != 0 {
             continue;
         }
         next += 1;
         label[gid] = next;
-        queue.clear();
-        queue.push(goal);
-        while let Some(cell) = queue.pop() {
-            for n in grid.free_neighbours(cell) {
-                let nid = grid.id(n).index();
-                if label[nid] == 0 {
-                    label[nid] = next;
-                    queue.push(n);
+        stack.clear();
+        stack.push(gid);
+        while let Some(i) = stack.pop() {
+            for n in [i - pw, i + pw, i - 1, i + 1] {
+                if label[n] == 0 {
+                    label[n] = next;
+                    stack.push(n);
                 }
             }
         }
     }
-    label
+    (label, pw)
 }
 
 #[cfg(test)]

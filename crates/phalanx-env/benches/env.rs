@@ -128,5 +128,48 @@ fn lockstep(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, steps, reset, lockstep);
+/// What the Python vector does per step, on one thread: 64 environments of generated
+/// episodes, each stepped with random actions and observed (channels, goal vector, mask,
+/// leader order), an ended episode replaced at once by the generated one of the next seed.
+fn vector(c: &mut Criterion) {
+    let n_envs = 64;
+    let mut group = c.benchmark_group("env_vector");
+    for (agents, size, density) in [(3, 32, 0.15), (25, 64, 0.3)] {
+        let gen_config = |seed| GenConfig { size, density, n_agents: agents, seed, fov: 9 };
+        let mut envs: Vec<(Env, u64)> = (0..n_envs as u64)
+            .map(|seed| {
+                let mut env = Env::new(EnvConfig::default()).unwrap();
+                env.reset(&generate(&gen_config(seed)).unwrap()).unwrap();
+                (env, seed)
+            })
+            .collect();
+        let mut obs = ObsBuffers::new(agents, envs[0].0.obs_shape());
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let actions: Vec<Action> =
+            (0..agents * 4096).map(|_| Action::ALL[rng.random_range(0..5u32) as usize]).collect();
+        let mut t = 0;
+        group.throughput(Throughput::Elements((n_envs * agents) as u64));
+        let name = format!("{n_envs}x{agents}_{size}x{size}_d{density}");
+        group.bench_function(BenchmarkId::new(name, agents), |b| {
+            b.iter(|| {
+                for (env, seed) in &mut envs {
+                    let chunk = &actions[(t % 4096) * agents..(t % 4096 + 1) * agents];
+                    t += 1;
+                    let step = env.step(chunk);
+                    if step.terminated || step.truncated {
+                        env.observe(&mut obs);
+                        *seed += n_envs as u64;
+                        env.reset(&generate(&gen_config(*seed)).unwrap()).unwrap();
+                    }
+                    env.observe(&mut obs);
+                    env.begin_turns(phalanx_env::LeaderRule::PathFinding);
+                    black_box(&obs.grid);
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, steps, reset, lockstep, vector);
 criterion_main!(benches);

@@ -30,6 +30,80 @@ const UNREACHABLE: u32 = u32::MAX;
 /// Distance of a blocked or outside cell (so the BFS reads one array, not two).
 const BLOCKED: u32 = u32::MAX - 1;
 
+/// One distance of a BFS map as stored: `u16` on maps of fewer padded cells than
+/// [`Distance::UNREACHABLE`] (every distance of a map is below its cell count), which halves
+/// the maps that every step reads, else `u32`.
+trait Distance: Copy + Ord + Send + Sync {
+    /// A free cell cut off from the goal.
+    const UNREACHABLE: Self;
+    /// A blocked or outside cell.
+    const BLOCKED: Self;
+    /// The goal's own distance.
+    const ZERO: Self;
+    /// The next distance.
+    fn plus_one(self) -> Self;
+    /// The distance as `u32`, `UNREACHABLE` and `BLOCKED` as theirs.
+    fn wide(self) -> u32;
+    /// The distance as `f32` (exact below `BLOCKED`).
+    fn float(self) -> f32;
+}
+
+impl Distance for u16 {
+    const UNREACHABLE: u16 = u16::MAX;
+    const BLOCKED: u16 = u16::MAX - 1;
+    const ZERO: u16 = 0;
+    #[inline(always)]
+    fn plus_one(self) -> u16 {
+        self + 1
+    }
+    #[inline(always)]
+    fn wide(self) -> u32 {
+        let d = u32::from(self);
+        if d >= u32::from(Self::BLOCKED) { d | 0xFFFF_0000 } else { d }
+    }
+    #[inline(always)]
+    fn float(self) -> f32 {
+        f32::from(self)
+    }
+}
+
+impl Distance for u32 {
+    const UNREACHABLE: u32 = UNREACHABLE;
+    const BLOCKED: u32 = BLOCKED;
+    const ZERO: u32 = 0;
+    #[inline(always)]
+    fn plus_one(self) -> u32 {
+        self + 1
+    }
+    #[inline(always)]
+    fn wide(self) -> u32 {
+        self
+    }
+    #[inline(always)]
+    fn float(self) -> f32 {
+        (self as i32) as f32
+    }
+}
+
+/// Every agent's padded BFS distance map, `n_agents` blocks of padded cells, narrow when the
+/// map is small enough.
+#[derive(Debug, Clone)]
+enum DistMaps {
+    Narrow(Vec<u16>),
+    Wide(Vec<u32>),
+}
+
+impl DistMaps {
+    /// The distance stored at padded index `idx` of the maps (agent block included).
+    #[inline(always)]
+    fn at(&self, idx: usize) -> u32 {
+        match self {
+            DistMaps::Narrow(maps) => maps[idx].wide(),
+            DistMaps::Wide(maps) => maps[idx],
+        }
+    }
+}
+
 /// Table I of the paper, per agent per step.
 mod reward {
     pub(super) const COLLISION: f32 = -50.0;
@@ -100,8 +174,10 @@ pub struct Env {
     step_limit: u32,
     /// Padded obstacle flags (1 = blocked, the padding included).
     blocked: Vec<u8>,
+    /// The same as the obstacle channel's values (1.0 = blocked), copied row by row.
+    blocked_obs: Vec<f32>,
     /// Per agent, padded BFS distances to its goal, `n_agents` blocks of padded cells.
-    dist: Vec<u32>,
+    dist: DistMaps,
     /// Number of padded cells.
     n_padded: usize,
     goals: Vec<Cell>,
@@ -116,8 +192,19 @@ pub struct Env {
     // Dynamic state.
     pos: Vec<Cell>,
     pos_idx: Vec<u32>,
+    /// Each agent's distance to its goal from where it stands (its map at `pos_idx`, kept
+    /// here so that the step's order, masks and cost channel need not load it).
+    own_dist: Vec<u32>,
+    /// The leader order's sort keys, `(distance << 16) | agent`.
+    order_keys: Vec<u64>,
     /// Padded occupancy: agent index or `NONE`.
     occ: Vec<u16>,
+    /// Padded positions channel: the identity code of the agent on a cell, 0.0 for none
+    /// (updated with `occ`, copied row by row).
+    occ_obs: Vec<f32>,
+    /// Padded flags: 1 on the goal cell of an agent that stands on it (goals are distinct,
+    /// so one write per agent and step keeps it), read by the cost channel.
+    parked: Vec<u8>,
     /// Padded claims of the step being resolved (`NONE` between steps).
     claim: Vec<u16>,
     target: Vec<u32>,
@@ -143,6 +230,10 @@ pub struct Env {
 }
 
 impl Env {
+    /// How many agents ahead a writer of every agent's channels prefetches the rows they
+    /// read ([`Env::prefetch_view`]).
+    pub const PREFETCH_AHEAD: usize = 2;
+
     /// An environment with no episode yet; call [`Env::reset`].
     pub fn new(config: EnvConfig) -> Result<Env, EnvError> {
         if config.fov < 3 || config.fov.is_multiple_of(2) {
@@ -158,7 +249,8 @@ impl Env {
             pw: 0,
             step_limit: 0,
             blocked: Vec::new(),
-            dist: Vec::new(),
+            blocked_obs: Vec::new(),
+            dist: DistMaps::Wide(Vec::new()),
             n_padded: 0,
             goals: Vec::new(),
             goal_idx: Vec::new(),
@@ -168,7 +260,11 @@ impl Env {
             queues: Vec::new(),
             pos: Vec::new(),
             pos_idx: Vec::new(),
+            own_dist: Vec::new(),
+            order_keys: Vec::new(),
             occ: Vec::new(),
+            occ_obs: Vec::new(),
+            parked: Vec::new(),
             claim: Vec::new(),
             target: Vec::new(),
             stack: Vec::new(),
@@ -258,9 +354,18 @@ impl Env {
         self.pos.extend_from_slice(instance.starts());
         self.pos_idx.clear();
         self.pos_idx.extend(self.pos.iter().map(|&c| padded_idx(pw, pad, c)));
+        self.occ_obs.clear();
+        self.occ_obs.resize(n_padded, 0.0);
         for (i, &p) in self.pos_idx.iter().enumerate() {
             self.occ[p as usize] = i as u16;
+            self.occ_obs[p as usize] = self.ident[i];
         }
+        self.order_keys.clear();
+        self.order_keys.reserve(n);
+        self.own_dist.clear();
+        self.own_dist.extend(
+            self.pos_idx.iter().enumerate().map(|(i, &p)| self.dist.at(i * n_padded + p as usize)),
+        );
         self.target.clear();
         self.target.resize(n, 0);
         self.stack.clear();
@@ -273,6 +378,11 @@ impl Env {
         self.closer.resize(n, false);
         self.on_goal.clear();
         self.on_goal.extend(self.pos_idx.iter().zip(&self.goal_idx).map(|(p, g)| p == g));
+        self.parked.clear();
+        self.parked.resize(n_padded, 0);
+        for (&on, &g) in self.on_goal.iter().zip(&self.goal_idx) {
+            self.parked[g as usize] = u8::from(on);
+        }
         self.loss = formation_loss(&self.pos, &self.goals);
         self.t = 0;
         self.done = false;
@@ -303,37 +413,39 @@ impl Env {
                 *slot = u8::from(grid.is_blocked(Cell::new(x as i32, y as i32)));
             }
         }
+        self.blocked_obs.clear();
+        self.blocked_obs.extend(self.blocked.iter().map(|&b| f32::from(b)));
         self.goals.clear();
         self.goals.extend_from_slice(instance.goals());
         self.goal_idx.clear();
         self.goal_idx.extend(self.goals.iter().map(|&g| padded_idx(pw, pad, g)));
-        // Distance maps, each from a template with the blocked cells marked.
-        self.dist.resize(n * n_padded, UNREACHABLE);
-        let (template, maps) = self.dist.split_at_mut(n_padded);
-        unsearched(template, &self.blocked);
-        for map in maps.chunks_exact_mut(n_padded) {
-            map.copy_from_slice(template);
-        }
-        // One BFS per agent, in parallel when the maps are large enough to pay for it.
+        // Distance maps, narrow when every distance fits.
         self.queues.resize_with(n, Vec::new);
-        let searches =
-            self.dist.chunks_exact_mut(n_padded).zip(&mut self.queues).zip(&self.goal_idx);
-        if n > 1 && n_padded >= PARALLEL_BFS_CELLS && rayon::current_num_threads() > 1 {
-            let searches: Vec<_> = searches.collect();
-            searches.into_par_iter().for_each(|((map, queue), &goal)| {
-                padded_bfs(pw, goal, map, queue);
-            });
-        } else {
-            for ((map, queue), &goal) in searches {
-                padded_bfs(pw, goal, map, queue);
+        let narrow = n_padded < usize::from(u16::MAX - 1);
+        match (&mut self.dist, narrow) {
+            (DistMaps::Narrow(maps), true) => {
+                search_maps(maps, &self.blocked, &self.goal_idx, &mut self.queues, pw);
+            }
+            (DistMaps::Wide(maps), false) => {
+                search_maps(maps, &self.blocked, &self.goal_idx, &mut self.queues, pw);
+            }
+            (dist, true) => {
+                let mut maps = Vec::new();
+                search_maps(&mut maps, &self.blocked, &self.goal_idx, &mut self.queues, pw);
+                *dist = DistMaps::Narrow(maps);
+            }
+            (dist, false) => {
+                let mut maps = Vec::new();
+                search_maps(&mut maps, &self.blocked, &self.goal_idx, &mut self.queues, pw);
+                *dist = DistMaps::Wide(maps);
             }
         }
     }
 
-    /// Agent `agent`'s map of the path-finding cost channel and mask: its BFS distances.
+    /// The distance from padded cell `idx` to agent `agent`'s goal (`BLOCKED`, `UNREACHABLE`).
     #[inline]
-    fn cost_map(&self, agent: usize) -> &[u32] {
-        &self.dist[agent * self.n_padded..(agent + 1) * self.n_padded]
+    fn dist_at(&self, agent: usize, idx: usize) -> u32 {
+        self.dist.at(agent * self.n_padded + idx)
     }
 
     /// Generates the instance for `config` (with this environment's field of view) and
@@ -402,7 +514,7 @@ impl Env {
     /// BFS distance from agent `agent`'s cell to its goal.
     #[inline]
     pub fn cost_to_go(&self, agent: usize) -> u32 {
-        self.dist[agent * self.n_padded + self.pos_idx[agent] as usize]
+        self.own_dist[agent]
     }
 
     /// BFS distance from `cell` to agent `agent`'s goal, `None` when blocked, outside or cut
@@ -413,7 +525,7 @@ impl Env {
         if !inside(cell.x, self.width) || !inside(cell.y, self.height) {
             return None;
         }
-        let d = self.dist[agent * self.n_padded + padded_idx(self.pw, self.pad, cell) as usize];
+        let d = self.dist_at(agent, padded_idx(self.pw, self.pad, cell) as usize);
         (d < BLOCKED).then_some(d)
     }
 
@@ -469,6 +581,7 @@ impl Env {
         for (&from, &to) in self.pos_idx.iter().zip(&self.target) {
             if from != to {
                 self.occ[from as usize] = NONE;
+                self.occ_obs[from as usize] = 0.0;
             }
         }
         for (i, &action) in actions.iter().enumerate() {
@@ -476,10 +589,12 @@ impl Env {
             self.closer[i] = false;
             if from != to {
                 self.occ[to as usize] = i as u16;
+                self.occ_obs[to as usize] = self.ident[i];
                 self.pos_idx[i] = to;
                 self.pos[i] = action.apply(self.pos[i]);
-                let dist = &self.dist[i * n_padded..(i + 1) * n_padded];
-                self.closer[i] = dist[to as usize] < dist[from as usize];
+                let d = self.dist.at(i * n_padded + to as usize);
+                self.closer[i] = d < self.own_dist[i];
+                self.own_dist[i] = d;
             }
         }
         self.t += 1;
@@ -487,6 +602,7 @@ impl Env {
         for ((on, &p), &g) in self.on_goal.iter_mut().zip(&self.pos_idx).zip(&self.goal_idx) {
             *on = p == g;
             all_on_goal &= *on;
+            self.parked[g as usize] = u8::from(*on);
         }
         self.loss = formation_loss(&self.pos, &self.goals);
         let terminated = match self.config.task {
@@ -629,15 +745,79 @@ impl Env {
             .zip(out.action_mask.chunks_exact_mut(N_ACTIONS))
             .enumerate()
         {
+            self.prefetch_view(i + Env::PREFETCH_AHEAD);
             self.write_grid(i, grid);
             self.write_vector(i, vector);
             self.write_mask(i, clip, mask);
         }
     }
 
+    /// Asks the processor to start loading the rows agent `agent`'s channels will read (its
+    /// distance map's and the padded maps' in its window), without waiting for
+    /// them: a writer of every agent's channels calls it a few agents ahead, so that those
+    /// loads overlap the writing instead of stalling it (the distance maps of many
+    /// environments do not stay in the cache). Only a hint: nothing observable changes, and
+    /// an agent index past the last one is ignored.
+    #[inline]
+    pub fn prefetch_view(&self, agent: usize) {
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = agent;
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let Some(&p) = self.pos_idx.get(agent) else { return };
+            let (f, pw) = (self.fov, self.pw);
+            let corner = p as usize - self.pad * pw - self.pad;
+            let (dist, size): (*const i8, usize) = match &self.dist {
+                DistMaps::Narrow(maps) => (maps[agent * self.n_padded..].as_ptr().cast(), 2),
+                DistMaps::Wide(maps) => (maps[agent * self.n_padded..].as_ptr().cast(), 4),
+            };
+            let occ = self.occ_obs.as_ptr().cast::<i8>();
+            let blocked = self.blocked_obs.as_ptr().cast::<i8>();
+            let parked = self.parked.as_ptr().cast::<i8>();
+            for r in 0..f {
+                let at = corner + r * pw;
+                // SAFETY: a prefetch never faults and reads nothing the program sees; the
+                // addresses are those of the window's rows, inside the maps.
+                unsafe {
+                    _mm_prefetch::<_MM_HINT_T0>(dist.wrapping_add(at * size));
+                    _mm_prefetch::<_MM_HINT_T0>(dist.wrapping_add((at + f - 1) * size));
+                    _mm_prefetch::<_MM_HINT_T0>(occ.wrapping_add(at * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(occ.wrapping_add((at + f - 1) * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(blocked.wrapping_add(at * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(blocked.wrapping_add((at + f - 1) * 4));
+                    _mm_prefetch::<_MM_HINT_T0>(parked.wrapping_add(at));
+                }
+            }
+        }
+    }
+
     /// Writes agent `agent`'s four channels, `[4, F, F]`.
     pub fn write_grid(&self, agent: usize, out: &mut [f32]) {
-        let f = self.fov;
+        // The usual fields of view get loops of a known length (unrolled, bounds checks
+        // hoisted); any other takes the same code with a run-time length.
+        let n_padded = self.n_padded;
+        match &self.dist {
+            DistMaps::Narrow(maps) => {
+                let map = &maps[agent * n_padded..(agent + 1) * n_padded];
+                match self.fov {
+                    9 => self.write_window(9, agent, map, out),
+                    11 => self.write_window(11, agent, map, out),
+                    _ => self.write_window(self.fov, agent, map, out),
+                }
+            }
+            DistMaps::Wide(maps) => {
+                let map = &maps[agent * n_padded..(agent + 1) * n_padded];
+                self.write_window(self.fov, agent, map, out);
+            }
+        }
+    }
+
+    /// [`Env::write_grid`] for `f == self.fov`: the obstacle and position channels are row
+    /// copies of padded maps of their values, the cost channel is computed row by row from
+    /// the distance map, the formation channel is the episode's.
+    #[inline(always)]
+    fn write_window<D: Distance>(&self, f: usize, agent: usize, dist: &[D], out: &mut [f32]) {
         let ff = f * f;
         assert_eq!(out.len(), CHANNELS * ff, "channel buffer of another size");
         let (obstacles, rest) = out.split_at_mut(ff);
@@ -647,10 +827,15 @@ impl Env {
         // The window's bottom-left cell is (x - R, y - R), padded (x, y).
         let p = self.pos_idx[agent] as usize;
         let corner = p - self.pad * pw - self.pad;
-        let dist = self.cost_map(agent);
+        // The window's rows of every padded map, checked once.
+        let span = (f - 1) * pw + f;
+        let blocked = &self.blocked_obs[corner..corner + span];
+        let occ = &self.occ_obs[corner..corner + span];
+        let parked = &self.parked[corner..corner + span];
+        let window = &dist[corner..corner + span];
         // Distances below 2^24 are exact in f32, so clamping in f32 equals clamping the
         // integer difference (and vectorises without SSE4.1's integer min/max).
-        let own = dist[p] as f32;
+        let own = self.own_dist[agent] as f32;
         let k = (f - 1) as f32;
         let inv_k = 1.0 / k;
         let rows = obstacles
@@ -659,33 +844,19 @@ impl Env {
             .zip(cost.chunks_exact_mut(f))
             .enumerate();
         for (r, ((obstacle_row, position_row), cost_row)) in rows {
-            let base = corner + r * pw;
-            for (o, &b) in obstacle_row.iter_mut().zip(&self.blocked[base..base + f]) {
-                *o = f32::from(b);
-            }
-            for (o, &d) in cost_row.iter_mut().zip(&dist[base..base + f]) {
-                let rel = ((d as i32) as f32 - own).clamp(-k, k) * inv_k;
-                *o = if d >= BLOCKED { COST_SENTINEL } else { rel };
-            }
-            let occ = &self.occ[base..base + f];
-            // All `NONE` (all bits set) exactly when the AND of the row is `NONE`; unlike
-            // an early-exit search, the fold vectorises.
-            if occ.iter().fold(NONE, |acc, &v| acc & v) == NONE {
-                position_row.fill(0.0);
-                continue;
-            }
-            for ((o, c), &v) in position_row.iter_mut().zip(cost_row.iter_mut()).zip(occ) {
-                *o = match self.ident.get(v as usize) {
-                    Some(&id) => {
-                        if v as usize != agent && self.on_goal[v as usize] {
-                            *c = COST_SENTINEL;
-                        }
-                        id
-                    }
-                    None => 0.0,
-                };
+            let base = r * pw;
+            obstacle_row.copy_from_slice(&blocked[base..base + f]);
+            position_row.copy_from_slice(&occ[base..base + f]);
+            let cells =
+                cost_row.iter_mut().zip(&window[base..base + f]).zip(&parked[base..base + f]);
+            for ((o, &d), &parked) in cells {
+                let rel = (d.float() - own).clamp(-k, k) * inv_k;
+                // Blocked, outside or cut off, or another agent standing on its goal.
+                *o = if (d >= D::BLOCKED) | (parked != 0) { COST_SENTINEL } else { rel };
             }
         }
+        // The centre is this agent (`parked` when on its own goal), always `d(own) - d(own)`.
+        cost[self.pad * f + self.pad] = 0.0;
         formation.copy_from_slice(&self.formation_obs[agent * ff..(agent + 1) * ff]);
     }
 
@@ -707,9 +878,9 @@ impl Env {
                 }
             }
             Clip::PathFinding => {
-                let dist = self.cost_map(agent);
+                let own = self.own_dist[agent];
                 for (o, n) in out.iter_mut().zip(neighbours) {
-                    *o = dist[n] <= dist[p];
+                    *o = self.dist_at(agent, n) <= own;
                 }
             }
         }
@@ -724,11 +895,14 @@ impl Env {
         self.order.extend(0..n as u16);
         match rule {
             LeaderRule::PathFinding => {
-                let (dist, pos_idx, n_padded) = (&self.dist, &self.pos_idx, self.n_padded);
-                self.order.sort_unstable_by_key(|&i| {
-                    let i = i as usize;
-                    (dist[i * n_padded + pos_idx[i] as usize], i)
-                });
+                // Sorting `(distance, agent)` pairs packed in one integer (agents < 2^16).
+                self.order_keys.clear();
+                self.order_keys.extend(
+                    self.own_dist.iter().enumerate().map(|(i, &d)| u64::from(d) << 16 | i as u64),
+                );
+                self.order_keys.sort_unstable();
+                self.order.clear();
+                self.order.extend(self.order_keys.iter().map(|&key| key as u16));
             }
             LeaderRule::Formation => {
                 let (sx, sy) = self
@@ -816,11 +990,35 @@ impl Env {
     }
 }
 
-/// A distance map before its search: `BLOCKED` on the blocked cells of `blocked`,
-/// `UNREACHABLE` on the others.
-fn unsearched(map: &mut [u32], blocked: &[u8]) {
-    for (d, &b) in map.iter_mut().zip(blocked) {
-        *d = if b != 0 { BLOCKED } else { UNREACHABLE };
+/// Fills `maps` with one padded BFS map per goal of `goal_idx` over the padded obstacles
+/// `blocked` (of width `pw`), searched in parallel when the maps are large enough to pay for it.
+fn search_maps<D: Distance>(
+    maps: &mut Vec<D>,
+    blocked: &[u8],
+    goal_idx: &[u32],
+    queues: &mut [Vec<u32>],
+    pw: usize,
+) {
+    let (n, n_padded) = (goal_idx.len(), blocked.len());
+    // Each map from a template with the blocked cells marked.
+    maps.resize(n * n_padded, D::UNREACHABLE);
+    let (template, rest) = maps.split_at_mut(n_padded);
+    for (d, &b) in template.iter_mut().zip(blocked) {
+        *d = if b != 0 { D::BLOCKED } else { D::UNREACHABLE };
+    }
+    for map in rest.chunks_exact_mut(n_padded) {
+        map.copy_from_slice(template);
+    }
+    if n > 1 && n_padded >= PARALLEL_BFS_CELLS && rayon::current_num_threads() > 1 {
+        let searches: Vec<_> = maps.chunks_exact_mut(n_padded).zip(queues).zip(goal_idx).collect();
+        searches.into_par_iter().for_each(|((map, queue), &goal)| {
+            padded_bfs(pw, goal, map, queue);
+        });
+    } else if let Some(queue) = queues.first_mut() {
+        // One queue for all, so that it stays in the cache.
+        for (map, &goal) in maps.chunks_exact_mut(n_padded).zip(goal_idx) {
+            padded_bfs(pw, goal, map, queue);
+        }
     }
 }
 
@@ -837,25 +1035,146 @@ fn padded_idx(pw: usize, pad: usize, c: Cell) -> u32 {
 /// Branch-free inner step: every neighbour is written to the queue's tail, and the tail
 /// only advances (and the distance only changes) when the neighbour is new, which avoids
 /// the mispredicted branch per neighbour.
-fn padded_bfs(pw: usize, source: u32, dist: &mut [u32], queue: &mut Vec<u32>) {
+fn padded_bfs<D: Distance>(pw: usize, source: u32, dist: &mut [D], queue: &mut Vec<u32>) {
     // At most every cell enters the queue once, plus one speculative write.
     if queue.len() < dist.len() + 1 {
         queue.resize(dist.len() + 1, 0);
     }
     let queue = &mut queue[..];
-    dist[source as usize] = 0;
+    dist[source as usize] = D::ZERO;
     queue[0] = source;
     let (mut head, mut tail) = (0, 1);
     while head < tail {
         let id = queue[head] as usize;
         head += 1;
-        let next = dist[id] + 1;
+        let next = dist[id].plus_one();
         for n in [id + pw, id - pw, id - 1, id + 1] {
             let d = dist[n];
-            let fresh = d == UNREACHABLE;
+            let fresh = d == D::UNREACHABLE;
             queue[tail] = n as u32;
             tail += usize::from(fresh);
             dist[n] = if fresh { next } else { d };
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use phalanx_core::{Action, Cell, Grid, Instance};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::{BLOCKED, Env, NONE};
+    use crate::obs::{CHANNELS, COST_SENTINEL};
+    use crate::{EnvConfig, Task};
+
+    /// The channels as written before the padded maps of their values: cell by cell from
+    /// the obstacle flags, the occupancy and the distance map (the reference the row copies
+    /// must equal bit for bit).
+    fn write_grid_cellwise(env: &Env, agent: usize, out: &mut [f32]) {
+        let f = env.fov;
+        let ff = f * f;
+        let pw = env.pw;
+        let p = env.pos_idx[agent] as usize;
+        let corner = p - env.pad * pw - env.pad;
+        let own = env.dist_at(agent, p) as f32;
+        let k = (f - 1) as f32;
+        for r in 0..f {
+            for c in 0..f {
+                let cell = corner + r * pw + c;
+                let at = |ch: usize| ch * ff + r * f + c;
+                out[at(0)] = f32::from(env.blocked[cell]);
+                let d = env.dist_at(agent, cell);
+                out[at(2)] = if d >= BLOCKED {
+                    COST_SENTINEL
+                } else {
+                    ((d as i32) as f32 - own).clamp(-k, k) * (1.0 / k)
+                };
+                let v = env.occ[cell];
+                out[at(1)] = 0.0;
+                if v != NONE {
+                    out[at(1)] = env.ident[v as usize];
+                    if v as usize != agent && env.on_goal[v as usize] {
+                        out[at(2)] = COST_SENTINEL;
+                    }
+                }
+                out[at(3)] = env.formation_obs[agent * ff + r * f + c];
+            }
+        }
+    }
+
+    /// A random instance: `w × h`, cells blocked with probability `density` (cut-off pockets
+    /// included), `n` agents on random free cells of the goal's component.
+    fn random_instance(rng: &mut ChaCha8Rng, w: u32, h: u32, density: f64, n: usize) -> Instance {
+        loop {
+            let grid = Grid::from_fn(w, h, |_| rng.random_bool(density));
+            let mut free: Vec<Cell> = grid.free_cells().collect();
+            if free.len() < 2 * n {
+                continue;
+            }
+            for i in 0..2 * n {
+                let j = rng.random_range(i..free.len());
+                free.swap(i, j);
+            }
+            let (starts, goals) = (free[..n].to_vec(), free[n..2 * n].to_vec());
+            if let Ok(instance) = Instance::new(grid, starts, goals) {
+                return instance;
+            }
+        }
+    }
+
+    #[test]
+    fn row_copied_channels_equal_the_cellwise_ones_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(37);
+        let mut compared = 0;
+        for case in 0..120 {
+            let fov = [3, 5, 7, 9, 11, 13][case % 6];
+            let (w, h) = (rng.random_range(1..=40), rng.random_range(1..=40));
+            let density = rng.random_range(0.0..0.4);
+            let n = rng.random_range(1..=(w * h / 4).clamp(1, 30) as usize);
+            let instance = random_instance(&mut rng, w, h, density, n);
+            let task = [Task::PathFinding, Task::Formation, Task::Meta][case % 3];
+            let config = EnvConfig { fov, task, step_limit: Some(60), ..EnvConfig::default() };
+            let mut env = Env::new(config).unwrap();
+            // Two resets on one map: the second keeps the searched maps.
+            for _ in 0..2 {
+                env.reset(&instance).unwrap();
+                let len = CHANNELS * (fov * fov) as usize;
+                let (mut fast, mut slow) = (vec![0.0; len], vec![0.0; len]);
+                loop {
+                    for agent in 0..n {
+                        env.write_grid(agent, &mut fast);
+                        write_grid_cellwise(&env, agent, &mut slow);
+                        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(
+                            bits(&fast),
+                            bits(&slow),
+                            "case {case}, t {}, agent {agent}",
+                            env.t()
+                        );
+                        compared += 1;
+                    }
+                    if env.is_done() {
+                        break;
+                    }
+                    // Mostly towards the goal, so that agents park on their goals.
+                    let actions: Vec<Action> = (0..n)
+                        .map(|i| {
+                            let here = env.positions()[i];
+                            let towards = Action::MOVES.into_iter().find(|a| {
+                                env.distance(i, a.apply(here))
+                                    .is_some_and(|d| d < env.cost_to_go(i))
+                            });
+                            match towards {
+                                Some(a) if rng.random_bool(0.7) => a,
+                                _ => Action::ALL[rng.random_range(0..5)],
+                            }
+                        })
+                        .collect();
+                    env.step(&actions);
+                }
+            }
+        }
+        assert!(compared > 10_000, "{compared} windows compared");
     }
 }

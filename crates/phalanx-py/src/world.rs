@@ -168,6 +168,7 @@ pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>) {
     let clip = task.clip();
     let grid_len = out.grid.len() / out.rank.len().max(1);
     for (agent, out) in out.grid.chunks_exact_mut(grid_len).enumerate() {
+        env.prefetch_view(agent + Env::PREFETCH_AHEAD);
         env.write_grid(agent, out);
     }
     for (agent, out) in out.vector.chunks_exact_mut(VECTOR_LEN).enumerate() {
