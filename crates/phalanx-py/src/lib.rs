@@ -46,6 +46,11 @@ pub(crate) fn bad(message: impl Into<String>) -> PyErr {
 #[pymodule]
 fn _phalanx(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("PhalanxError", m.py().get_type::<PhalanxError>())?;
+    // The default map settings, phalanx-gen's (the Python layer's defaults read them).
+    m.add("DEFAULT_SIZE", phalanx_gen::DEFAULT_SIZE)?;
+    m.add("DEFAULT_DENSITY", phalanx_gen::DEFAULT_DENSITY)?;
+    m.add("DEFAULT_AGENTS", phalanx_gen::DEFAULT_AGENTS)?;
+    m.add("DEFAULT_FOV", phalanx_gen::DEFAULT_FOV)?;
     m.add_class::<world::World>()?;
     m.add_class::<vector::VecWorld>()?;
     m.add_class::<toolkit::PyInstance>()?;

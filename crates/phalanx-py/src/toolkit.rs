@@ -115,7 +115,7 @@ impl PyInstance {
 /// obstacle `density`, the team in the bottom-left region, the goals the starts translated to
 /// the top-right.
 #[pyfunction]
-#[pyo3(signature = (size = 32, density = 0.15, agents = 3, seed = 0, fov = 9))]
+#[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, seed = 0, fov = phalanx_gen::DEFAULT_FOV))]
 pub(crate) fn generate(
     size: u32,
     density: f64,

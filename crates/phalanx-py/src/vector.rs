@@ -195,7 +195,7 @@ impl VecWorld {
     /// that many threads (`None`: rayon's global pool, `RAYON_NUM_THREADS` or one per core).
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments")]
-    #[pyo3(signature = (num_envs, size = 32, density = 0.15, agents = 3, task = "pathfinding", fov = 9, formation_weight = 1.0, instance = None, num_threads = None))]
+    #[pyo3(signature = (num_envs, size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None, num_threads = None))]
     fn new(
         py: Python<'_>,
         num_envs: usize,

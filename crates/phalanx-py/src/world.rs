@@ -254,7 +254,7 @@ impl World {
     /// weighs `L_f` by `formation_weight`.
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments")]
-    #[pyo3(signature = (size = 32, density = 0.15, agents = 3, task = "pathfinding", fov = 9, formation_weight = 1.0, instance = None))]
+    #[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None))]
     fn new(
         py: Python<'_>,
         size: u32,

@@ -155,11 +155,11 @@ class _Shared:
 
     def _setup(
         self,
-        size: int = 32,
-        density: float = 0.15,
-        agents: int = 3,
+        size: int = _phalanx.DEFAULT_SIZE,
+        density: float = _phalanx.DEFAULT_DENSITY,
+        agents: int = _phalanx.DEFAULT_AGENTS,
         task: str = "pathfinding",
-        fov: int = 9,
+        fov: int = _phalanx.DEFAULT_FOV,
         formation_weight: float | None = None,
         seed: int | None = None,
         instance: str | os.PathLike | None = None,

@@ -35,7 +35,11 @@ class Solution:
 
 
 def generate(
-    size: int = 32, density: float = 0.15, agents: int = 3, seed: int = 0, fov: int = 9
+    size: int = _phalanx.DEFAULT_SIZE,
+    density: float = _phalanx.DEFAULT_DENSITY,
+    agents: int = _phalanx.DEFAULT_AGENTS,
+    seed: int = 0,
+    fov: int = _phalanx.DEFAULT_FOV,
 ) -> Instance:
     """The paper's generator: the instance ``phalanx gen`` writes for these settings."""
     return _phalanx.generate(size, density, agents, seed, fov)
