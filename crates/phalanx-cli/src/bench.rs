@@ -16,8 +16,8 @@
 //! `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the scripted rule, closing up above
 //! `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`, default 1), `e2e` (the end-to-end
 //! VDN baseline, `--e2e DIR` or `models/e2e`), `ctce` (the centralised baseline, `--ctce DIR`
-//! or `models/ctce`). Joint-state A* runs on maps
-//! up to `--jsa-max-side` only.
+//! or `models/ctce`), `imitation` (the student of the centralised expert, `--imitation DIR`
+//! or `models/imitation`). Joint-state A* runs on maps up to `--jsa-max-side` only.
 //!
 //! Output in `--out`: `runs.jsonl` (one record per run, appended as it finishes; `--resume`
 //! continues from it), `runs.csv`, `cells.json` and `cells.csv` (per case and method),
@@ -151,6 +151,10 @@ pub(crate) struct BenchArgs {
     /// models/ctce).
     #[arg(long, value_name = "DIR")]
     ctce: Option<PathBuf>,
+    /// The imitation student's directory or policy file for the method `imitation`
+    /// (default: the shipped models/imitation).
+    #[arg(long, value_name = "DIR")]
+    imitation: Option<PathBuf>,
 }
 
 /// Runs `phalanx bench`.
@@ -246,7 +250,9 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
                 }
             };
             let mut names = default_methods(name, &hierarchy);
-            for (baseline, dir) in [("e2e", &args.e2e), ("ctce", &args.ctce)] {
+            let learned =
+                [("e2e", &args.e2e), ("ctce", &args.ctce), ("imitation", &args.imitation)];
+            for (baseline, dir) in learned {
                 if dir.is_some() || models::weights_file(None, baseline).is_ok() {
                     names.push(baseline.to_owned());
                 }
@@ -263,6 +269,7 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         meta_front: meta_front.as_ref(),
         e2e: args.e2e.as_deref(),
         ctce: args.ctce.as_deref(),
+        imitation: args.imitation.as_deref(),
     };
     let mut methods = names
         .iter()
@@ -292,6 +299,7 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
             .transpose()?,
         e2e: baseline_checksum(&args.e2e, "e2e")?,
         ctce: baseline_checksum(&args.ctce, "ctce")?,
+        imitation: baseline_checksum(&args.imitation, "imitation")?,
         cases: cases.iter().map(|c| c.label.clone()).collect(),
     };
     let settings_path = args.out.join("bench.json");

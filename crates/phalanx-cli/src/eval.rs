@@ -42,6 +42,9 @@ pub(crate) enum PolicyName {
     /// The centralised (CTCE) baseline: one network over the team's observations choosing
     /// the joint action on the meta task (`phalanx train ctce`).
     Ctce,
+    /// The imitation student: the five moves on the meta task, learned from the
+    /// centralised expert (`phalanx train imitation`).
+    Imitation,
 }
 
 impl PolicyName {
@@ -54,6 +57,7 @@ impl PolicyName {
             PolicyName::Leader => "leader",
             PolicyName::E2e => "e2e",
             PolicyName::Ctce => "ctce",
+            PolicyName::Imitation => "imitation",
         }
     }
 
@@ -62,7 +66,11 @@ impl PolicyName {
         match self {
             PolicyName::PathFinding => Task::PathFinding,
             PolicyName::Formation => Task::Formation,
-            PolicyName::Hrl | PolicyName::Leader | PolicyName::E2e | PolicyName::Ctce => Task::Meta,
+            PolicyName::Hrl
+            | PolicyName::Leader
+            | PolicyName::E2e
+            | PolicyName::Ctce
+            | PolicyName::Imitation => Task::Meta,
         }
     }
 }
@@ -315,6 +323,13 @@ fn text(r: &Report<'_>) -> String {
         ("collisions", format!("{:.2} per episode", s.collisions)),
         ("formation_loss", format!("{:.4} (sum of L_f over steps / map side)", s.formation_loss)),
         ("final L_f", format!("{:.4}", s.final_formation_loss)),
+        (
+            "stalled",
+            format!(
+                "{} standing, {} oscillating (episodes short of the goals)",
+                s.standing, s.oscillating
+            ),
+        ),
         ("rollouts", format!("{} (random action prob. {})", r.rollouts.count, r.rollouts.epsilon)),
         ("decisions/s", format!("{:.0} ({:.2} s)", r.decisions_per_s, r.seconds)),
         (

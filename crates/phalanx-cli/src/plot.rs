@@ -30,6 +30,14 @@ const RUN_PANELS: [(&str, &str); 6] = [
     (metrics::COLLISIONS, "collisions per episode"),
 ];
 
+/// The panels of an imitation run's `curves.svg` (the step axis counts updates).
+const IMITATION_PANELS: [(&str, &str); 4] = [
+    (metrics::IMITATION_LOSS, "cloning loss (cross-entropy)"),
+    (metrics::IMITATION_ACCURACY, "label accuracy"),
+    (metrics::VAL_SUCCESS, "validation success (greedy)"),
+    (metrics::VAL_FORMATION_LOSS, "validation Table II loss"),
+];
+
 /// The panels of `phalanx curves`: the paper's Fig. 4 and the success rate.
 const COMPARE_PANELS: [(&str, &str); 4] = [
     (metrics::EPISODIC_RETURN, "team reward per episode"),
@@ -100,8 +108,22 @@ pub(crate) fn run(cmd: CurvesCmd) -> anyhow::Result<ExitCode> {
 /// atomically. Lines that do not parse (the last line of a run killed while writing) are
 /// skipped; returns the first such line number, if any.
 pub(crate) fn training_curves(metrics_path: &Path, svg: &Path) -> anyhow::Result<Option<usize>> {
-    let (lines, first_bad) = read_lines(metrics_path, &RUN_PANELS, None)?;
-    let mut curves = empty_panels(&RUN_PANELS);
+    run_curves(metrics_path, svg, &RUN_PANELS)
+}
+
+/// [`training_curves`] of an imitation run: the cloning loss and accuracy, the validation
+/// figures.
+pub(crate) fn imitation_curves(metrics_path: &Path, svg: &Path) -> anyhow::Result<Option<usize>> {
+    run_curves(metrics_path, svg, &IMITATION_PANELS)
+}
+
+fn run_curves(
+    metrics_path: &Path,
+    svg: &Path,
+    panels: &[(&str, &str)],
+) -> anyhow::Result<Option<usize>> {
+    let (lines, first_bad) = read_lines(metrics_path, panels, None)?;
+    let mut curves = empty_panels(panels);
     for (curve, line) in curves.iter_mut().zip(lines) {
         curve.lines.push(line);
     }

@@ -1,18 +1,18 @@
-//! `phalanx run`: a decentralised run of the path-finding policy or of the hierarchy
-//! (`--policy hrl`). The world and every agent exchange only the paper's messages
+//! `phalanx run`: a decentralised run of the path-finding policy, of the hierarchy
+//! (`--policy hrl`) or of the imitation student (`--policy imitation`). The world and every agent exchange only the paper's messages
 //! (observations, actions, the end, and for the hierarchy the choices and the formation
 //! frames; docs/runtime.md): as threads of one process over the in-process bus of
 //! phalanx-runtime, or with `--processes` as processes of their own (`phalanx world` and one
 //! `phalanx agent` each) over Zenoh on loopback. The trajectory is scored by the one validator
 //! and printed as `phalanx solve` prints a plan; either way it is the plan of `phalanx solve
-//! --planner pathfinding --rollouts 1` (or `--planner hrl`).
+//! --planner pathfinding --rollouts 1` (or `--planner hrl`, `--planner imitation`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use phalanx_env::EnvConfig;
+use phalanx_env::{EnvConfig, Task};
 use phalanx_io::{NamedInstance, PlanStats};
 use phalanx_msg::{End, EndReason};
 use phalanx_plan::SolveSummary;
@@ -29,6 +29,9 @@ pub(crate) enum TeamPolicy {
     Pathfinding,
     /// The hierarchy: the meta policy choosing each agent's low-level policy every step.
     Hrl,
+    /// The imitation student: the five moves on the meta task, learned from the
+    /// centralised expert.
+    Imitation,
 }
 
 impl TeamPolicy {
@@ -37,16 +40,26 @@ impl TeamPolicy {
         match self {
             TeamPolicy::Pathfinding => "pathfinding",
             TeamPolicy::Hrl => "hrl",
+            TeamPolicy::Imitation => "imitation",
+        }
+    }
+
+    /// Its name under `models/`.
+    fn model(self) -> &'static str {
+        match self {
+            TeamPolicy::Pathfinding => "pathfinding",
+            TeamPolicy::Hrl => "meta",
+            TeamPolicy::Imitation => "imitation",
         }
     }
 }
 
-/// What an agent decides with: the path-finding policy, or the hierarchy (its meta policy
-/// and both low-level policies).
+/// What an agent decides with: one flat policy (path finding or the imitation student), or
+/// the hierarchy (its meta policy and both low-level policies).
 #[derive(Debug, Clone)]
 pub(crate) enum Team {
-    /// The path-finding policy.
-    PathFinding(Box<Policy>),
+    /// A flat policy of the five moves.
+    Flat(Box<Policy>),
     /// The hierarchy.
     Hierarchy(Box<Hierarchy>),
 }
@@ -60,7 +73,9 @@ impl Team {
         n: usize,
     ) -> anyhow::Result<Team> {
         match policy {
-            TeamPolicy::Pathfinding => Ok(Team::PathFinding(Box::new(policy_for(weights, n)?))),
+            TeamPolicy::Pathfinding | TeamPolicy::Imitation => {
+                Ok(Team::Flat(Box::new(policy_for(weights, policy.model(), n)?)))
+            }
             TeamPolicy::Hrl => {
                 let hierarchy = models::load_hierarchy(weights)
                     .context("loading the hierarchy (the meta policy and its low level)")?;
@@ -77,7 +92,7 @@ impl Team {
     /// The field of view its policies read.
     pub(crate) fn fov(&self) -> u32 {
         match self {
-            Team::PathFinding(policy) => policy.config().fov as u32,
+            Team::Flat(policy) => policy.config().fov as u32,
             Team::Hierarchy(hierarchy) => hierarchy.fov() as u32,
         }
     }
@@ -99,7 +114,7 @@ impl Team {
         }
         let slot = usize::from(id);
         Ok(match self {
-            Team::PathFinding(policy) => {
+            Team::Flat(policy) => {
                 let decider = AgentPolicy::new(policy.as_ref().clone(), slot)?;
                 go(&mut Agent::new(id, decider), transport, silence)
             }
@@ -118,7 +133,7 @@ pub(crate) struct TeamArgs {
     #[arg(long, value_enum, default_value = "pathfinding")]
     pub(crate) policy: TeamPolicy,
     /// The policy's directory or file (hrl: the meta policy's; default: the shipped
-    /// models/pathfinding or models/meta).
+    /// models/pathfinding, models/meta or models/imitation).
     #[arg(long, value_name = "DIR")]
     pub(crate) weights: Option<PathBuf>,
 }
@@ -160,10 +175,10 @@ pub(crate) struct RunCmd {
     json: bool,
 }
 
-/// The path-finding policy of `weights` (or the shipped one) for a team of `n` agents.
-pub(crate) fn policy_for(weights: Option<&Path>, n: usize) -> anyhow::Result<Policy> {
-    let (policy, header, file) = models::load_with_header(weights, "pathfinding")
-        .context("loading the pathfinding policy")?;
+/// The flat policy `name` of `weights` (or the shipped one) for a team of `n` agents.
+pub(crate) fn policy_for(weights: Option<&Path>, name: &str, n: usize) -> anyhow::Result<Policy> {
+    let (policy, header, file) = models::load_with_header(weights, name)
+        .with_context(|| format!("loading the {name} policy"))?;
     let slots = header.net_config.n_agents_max;
     anyhow::ensure!(
         n <= slots,
@@ -186,6 +201,7 @@ pub(crate) fn world_for(
     let config = EnvConfig { fov, step_limit, ..EnvConfig::default() };
     match policy {
         TeamPolicy::Pathfinding => World::new(instance, config, 0),
+        TeamPolicy::Imitation => World::new(instance, EnvConfig { task: Task::Meta, ..config }, 0),
         TeamPolicy::Hrl => World::hierarchy(instance, config, 0),
     }
     .with_context(|| format!("{}: the world refuses the instance", path.display()))
@@ -196,6 +212,7 @@ pub(crate) fn world_for(
 /// goals. Exit 0 when it did, 1 otherwise.
 pub(crate) fn report(
     named: &NamedInstance,
+    policy: TeamPolicy,
     world: &World,
     end: End,
     runtime_s: f64,
@@ -208,8 +225,7 @@ pub(crate) fn report(
         EndReason::Done => Ok(plan),
         EndReason::StepLimit | EndReason::Stopped => Err(Outcome::StepLimit),
     };
-    let planner = if world.is_hierarchy() { "hrl" } else { "pathfinding" };
-    let planner = format!("{planner} (decentralised)");
+    let planner = format!("{} (decentralised)", policy.name());
     let summary = SolveSummary::of(instance, &planner, result, runtime_s);
     if let (Some(path), Outcome::Solved) = (output, summary.outcome) {
         let stats = PlanStats::of(plan, runtime_s);
@@ -279,7 +295,7 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
         end
     })?;
     let runtime_s = started.elapsed().as_secs_f64();
-    report(&named, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
+    report(&named, cmd.team.policy, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
 }
 
 /// `phalanx run --processes`: starts `phalanx world` and one `phalanx agent` per agent (this

@@ -1,5 +1,6 @@
 //! `phalanx solve`: plans an instance with one of the classical planners of `phalanx-plan` or
-//! a learned policy (`hrl`, the hierarchy; `pathfinding`, the path-finding policy alone),
+//! a learned policy (`hrl`, the hierarchy; `pathfinding`, the path-finding policy alone;
+//! `imitation`, the student of the centralised expert),
 //! writes the plan in the libMultiRobotPlanning format and prints the outcome, the runtime and
 //! the validator's metrics (text, or JSON with `--json`).
 //!
@@ -51,6 +52,9 @@ pub(crate) enum PlannerName {
     /// The learned low level under the scripted leader–follower meta rule (--wait-above,
     /// --patience).
     Leader,
+    /// The imitation student: one decentralised policy that learned from the centralised
+    /// expert (docs/imitation.md).
+    Imitation,
 }
 
 /// Plans an instance and reports the plan's metrics.
@@ -111,7 +115,10 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
     );
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
     let instance = &named.instance;
-    if matches!(cmd.planner, PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader) {
+    if matches!(
+        cmd.planner,
+        PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader | PlannerName::Imitation
+    ) {
         return learned(&cmd, &named);
     }
     let choice = match cmd.planner {
@@ -125,7 +132,10 @@ pub(crate) fn run(cmd: SolveCmd) -> anyhow::Result<ExitCode> {
             Objective::Weighted(cmd.weight.unwrap_or(1.0)),
         )),
         PlannerName::Swarm => PlannerChoice::Swarm(SwarmConfig::default()),
-        PlannerName::Hrl | PlannerName::PathFinding | PlannerName::Leader => {
+        PlannerName::Hrl
+        | PlannerName::PathFinding
+        | PlannerName::Leader
+        | PlannerName::Imitation => {
             unreachable!("learned planners return above")
         }
     };
@@ -173,7 +183,11 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     let hrl = cmd.planner == PlannerName::Hrl;
     let scripted = cmd.planner == PlannerName::Leader;
     let rule = cmd.leader.rule(scripted)?;
-    let name = if hrl { "meta" } else { "pathfinding" };
+    let name = match cmd.planner {
+        PlannerName::Hrl => "meta",
+        PlannerName::Imitation => "imitation",
+        _ => "pathfinding",
+    };
     let file = models::weights_file(cmd.weights.as_deref(), name)?;
     let (policy, header) = load_policy_any(&file, &Device::flex())
         .with_context(|| format!("loading the {name} policy"))?;
@@ -184,12 +198,15 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
     } else if scripted {
         let low = models::low_level_of(policy, None)?;
         Solver::Hierarchy(Box::new(phalanx_rl::Hierarchy::scripted(rule, low)))
+    } else if cmd.planner == PlannerName::Imitation {
+        Solver::EndToEnd(Box::new(policy))
     } else {
         Solver::PathFinding(Box::new(policy))
     };
     let planner = match cmd.planner {
         PlannerName::Hrl => "hrl",
         PlannerName::Leader => "leader",
+        PlannerName::Imitation => "imitation",
         _ => "pathfinding",
     };
     let rollouts = cmd.rollouts.rollouts(cmd.seed, usize::MAX);

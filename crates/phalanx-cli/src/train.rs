@@ -57,6 +57,9 @@ pub(crate) enum TaskName {
     /// The centralised (CTCE) baseline: the e2e task with one network that reads the whole
     /// team's observations and chooses the joint action agent after agent.
     Ctce,
+    /// The imitation student: behaviour cloning of the centralised expert, then DAgger
+    /// rounds (docs/imitation.md); `--steps` caps its updates.
+    Imitation,
 }
 
 impl TaskName {
@@ -68,6 +71,7 @@ impl TaskName {
             TaskName::Meta => TrainTask::Meta,
             TaskName::E2e => TrainTask::EndToEnd,
             TaskName::Ctce => TrainTask::Centralised,
+            TaskName::Imitation => unreachable!("imitation runs apart (imitate_train)"),
         }
     }
 }
@@ -120,6 +124,24 @@ pub(crate) struct TrainCmd {
 
 /// Runs `phalanx train`.
 pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
+    if cmd.task == TaskName::Imitation {
+        for (flag, given) in [
+            ("--weight-multiple", cmd.weight_multiple.is_some()),
+            ("--formation-weight", cmd.formation_weight.is_some()),
+            ("--idle-cost", cmd.idle_cost.is_some()),
+            ("--wide-share", cmd.wide_share.is_some()),
+        ] {
+            anyhow::ensure!(!given, "{flag} is not a setting of `phalanx train imitation`");
+        }
+        return crate::imitate_train::run(&crate::imitate_train::ImitationArgs {
+            config: cmd.config,
+            out: cmd.out,
+            resume: cmd.resume,
+            seed: cmd.seed,
+            steps: cmd.steps,
+            maps: cmd.maps,
+        });
+    }
     let dir = &cmd.out;
     let saved_config = dir.join("config.json");
     let task = cmd.task.train_task();
@@ -340,7 +362,7 @@ fn train<E: MarlEnv + Send>(
 /// first line that is incomplete, not a record, or of a step after the checkpoint, and all
 /// after it, go; the resumed run writes them again, exactly (every record after a checkpoint
 /// has a later step: a chunk ends with its last step's updates).
-fn cut_metrics(path: &Path, env_steps: u64) -> anyhow::Result<()> {
+pub(crate) fn cut_metrics(path: &Path, env_steps: u64) -> anyhow::Result<()> {
     let text = match fs::read(path) {
         Ok(text) => text,
         Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(()),

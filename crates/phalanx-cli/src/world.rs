@@ -79,5 +79,5 @@ pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     // The agents leave once they hear the end; the world stays until they have (bounded), so
     // that the end reaches them before its session closes. Those that stay are not waited for.
     transport.wait_agents_left(Duration::from_secs(2));
-    run::report(&named, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
+    run::report(&named, cmd.policy, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
 }

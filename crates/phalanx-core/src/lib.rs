@@ -33,6 +33,6 @@ pub use distance::{DistanceMap, octile_distance};
 pub use formation::{formation_fit, formation_loss, formation_loss_squared};
 pub use grid::Grid;
 pub use instance::{Instance, InstanceError};
-pub use metrics::PlanMetrics;
+pub use metrics::{PlanMetrics, STALL_WINDOW, Stall};
 pub use plan::Plan;
 pub use validate::{Violation, ViolationKind, validate};

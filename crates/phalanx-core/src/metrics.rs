@@ -67,6 +67,54 @@ impl PlanMetrics {
     }
 }
 
+/// Steps at the end of a plan [`Stall::of`] looks at.
+pub const STALL_WINDOW: usize = 16;
+
+/// How a team that did not reach its goals ended: a deadlock or a livelock, the failures a
+/// learned policy must be counted on (`docs/imitation.md`, *Deadlocks and standing teams*).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stall {
+    /// No agent moved in the last [`STALL_WINDOW`] steps.
+    Standing,
+    /// The last [`STALL_WINDOW`] steps went round at most four joint states (agents
+    /// stepping back and forth, a team circling in place).
+    Oscillating,
+}
+
+impl Stall {
+    /// How the plan ends when it does not reach `goals`: standing, oscillating, or `None`
+    /// (the goals reached, the team still moving on, or a plan shorter than the window).
+    pub fn of(plan: &Plan, goals: &[Cell]) -> Option<Stall> {
+        let steps: Vec<&[Cell]> = plan.steps().collect();
+        let last = *steps.last()?;
+        if last == goals || steps.len() <= STALL_WINDOW {
+            return None;
+        }
+        let window = &steps[steps.len() - STALL_WINDOW - 1..];
+        if window.iter().all(|&step| step == last) {
+            return Some(Stall::Standing);
+        }
+        let mut seen: Vec<&[Cell]> = Vec::new();
+        for &step in window {
+            if !seen.contains(&step) {
+                seen.push(step);
+                if seen.len() > 4 {
+                    return None;
+                }
+            }
+        }
+        Some(Stall::Oscillating)
+    }
+
+    /// Its name in records and tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stall::Standing => "standing",
+            Stall::Oscillating => "oscillating",
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -106,6 +154,25 @@ mod tests {
         assert_eq!(m.formation_loss_per_step[4], 0.0);
         // Agent 0 arrives at step 4, agent 1 at step 2, agent 2 at step 3.
         assert_eq!(m.sum_of_costs, 4 + 2 + 3);
+    }
+
+    #[test]
+    fn stalls_are_teams_standing_or_going_round_short_of_their_goals() {
+        let goal = vec![c(9, 0)];
+        let plan = |path: Vec<Cell>| Plan::from_paths(&[path]);
+        let walk: Vec<Cell> = (0..10).map(|x| c(x, 0)).collect();
+        let mut stuck = walk[..5].to_vec();
+        stuck.extend(std::iter::repeat_n(c(4, 0), STALL_WINDOW));
+        assert_eq!(Stall::of(&plan(stuck.clone()), &goal), Some(Stall::Standing));
+        let mut rocking = walk[..5].to_vec();
+        rocking.extend((0..STALL_WINDOW).map(|t| c(4 + (t % 2) as i32, 0)));
+        assert_eq!(Stall::of(&plan(rocking), &goal), Some(Stall::Oscillating));
+        // Reaching the goals, still moving on, or too short to tell: no stall.
+        stuck.push(c(9, 0));
+        assert_eq!(Stall::of(&plan(stuck), &goal), None);
+        let long: Vec<Cell> = (0..40).map(|t| c(t % 9, 0)).collect();
+        assert_eq!(Stall::of(&plan(long), &goal), None);
+        assert_eq!(Stall::of(&plan(walk[..3].to_vec()), &goal), None);
     }
 
     #[test]

@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use phalanx_core::{Instance, Plan};
+use phalanx_core::{Instance, Plan, Stall};
 use phalanx_env::{EnvConfig, EnvError, Task};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, run_planner};
@@ -20,8 +20,9 @@ pub enum Solver {
     /// A hierarchy: a meta policy, learned or scripted, over the low level (rollouts of
     /// [`Settings`]).
     Hierarchy(Box<Hierarchy>),
-    /// The end-to-end baseline: one policy of the five moves on the meta task (formation
-    /// clipping; rollouts of [`Settings`]).
+    /// One flat policy of the five moves on the meta task (formation clipping, agents in
+    /// path-finding leader order with the action messages; rollouts of [`Settings`]): the
+    /// end-to-end baselines and the imitation student.
     EndToEnd(Box<Policy>),
 }
 
@@ -101,6 +102,7 @@ impl Method {
         let result = if best.success { Ok(&best.plan) } else { Err(Outcome::StepLimit) };
         let mut summary = SolveSummary::of(instance, &self.name, result, runtime_s);
         summary.decisions = Some(best.decisions);
+        summary.stall = Stall::of(&best.plan, instance.goals()).map(|it| it.name().to_owned());
         Ok(Solved { summary, plan: Some(best.plan), choices: best.choices })
     }
 

@@ -5,7 +5,8 @@
 //! makespan) or `jsa:W` (minimises `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the
 //! scripted rule, closing up above `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`,
 //! default 1; with a front of meta policies, the one trained at `M`), `e2e` (the end-to-end
-//! VDN baseline) and `ctce` (the centralised baseline).
+//! VDN baseline), `ctce` (the centralised baseline) and `imitation` (the student that learned
+//! from the centralised expert, docs/imitation.md).
 //!
 //! The learned ones are loaded by `phalanx_rl::models` (given files or the shipped models).
 
@@ -21,8 +22,19 @@ use thiserror::Error;
 use crate::{Method, Solver};
 
 /// The names [`Method::named`] knows.
-pub const METHOD_NAMES: [&str; 10] =
-    ["cbs", "ecbs", "swarm", "astar", "jsa", "pathfinding", "leader", "hrl", "e2e", "ctce"];
+pub const METHOD_NAMES: [&str; 11] = [
+    "cbs",
+    "ecbs",
+    "swarm",
+    "astar",
+    "jsa",
+    "pathfinding",
+    "leader",
+    "hrl",
+    "e2e",
+    "ctce",
+    "imitation",
+];
 
 /// The CBS improvements by their names in `cbs:FLAGS`.
 pub const CBS_FLAGS: [&str; 6] = ["pc", "bp", "rect", "target", "cg", "cat"];
@@ -40,6 +52,8 @@ pub struct Sources<'a> {
     pub e2e: Option<&'a Path>,
     /// The centralised policy of `ctce` (a file or weights directory; `None`: the shipped one).
     pub ctce: Option<&'a Path>,
+    /// The student of `imitation` (a file or weights directory; `None`: the shipped one).
+    pub imitation: Option<&'a Path>,
 }
 
 /// Why a method name cannot be run.
@@ -183,9 +197,13 @@ impl Method {
                 let low = models::low_level_of(pathfinding, None).map_err(model)?;
                 Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
             }
-            "e2e" | "ctce" => {
+            "e2e" | "ctce" | "imitation" => {
                 no_param()?;
-                let path = if name == "e2e" { sources.e2e } else { sources.ctce };
+                let path = match name {
+                    "e2e" => sources.e2e,
+                    "ctce" => sources.ctce,
+                    _ => sources.imitation,
+                };
                 let (policy, _) = models::load(path, name).map_err(model)?;
                 Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
             }

@@ -41,6 +41,9 @@ pub struct Cell {
     pub runtime_s: f64,
     /// Runs that hit the time limit.
     pub timeouts: usize,
+    /// Runs of a learned method that ended short of the goals with the team standing still
+    /// or oscillating (`phalanx_core::Stall`).
+    pub stalled: usize,
 }
 
 /// The cells of every (case, method) pair with runs, cases then methods in the given order.
@@ -71,6 +74,7 @@ pub fn cells(records: &[RunRecord], cases: &[Case], methods: &[String]) -> Vec<C
                 sum_of_costs: mean(&|r| metric(r).sum_of_costs as f64),
                 runtime_s: runs.iter().map(|r| r.run.runtime_s).sum::<f64>() / runs.len() as f64,
                 timeouts: runs.iter().filter(|r| r.run.outcome == Outcome::Timeout).count(),
+                stalled: runs.iter().filter(|r| r.run.stall.is_some()).count(),
             });
         }
     }
@@ -82,7 +86,7 @@ pub fn cells(records: &[RunRecord], cases: &[Case], methods: &[String]) -> Vec<C
 pub fn cells_csv(cells: &[Cell]) -> String {
     let mut out = String::from(
         "case,method,runs,solved,success_rate,makespan,formation_loss,formation_loss_mean,\
-         sum_of_costs,runtime_s,timeouts\n",
+         sum_of_costs,runtime_s,timeouts,stalled\n",
     );
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for c in cells {
@@ -98,6 +102,7 @@ pub fn cells_csv(cells: &[Cell]) -> String {
             opt(c.sum_of_costs),
             c.runtime_s.to_string(),
             c.timeouts.to_string(),
+            c.stalled.to_string(),
         ];
         out.push_str(&fields.join(","));
         out.push('\n');
@@ -114,9 +119,9 @@ fn is_hierarchy(method: &str) -> bool {
 /// and CBS on Table II's rows, the paper's.
 pub fn markdown(cases: &[Case], cells: &[Cell]) -> String {
     let mut out = String::from(
-        "| map | agents | density | method | runs | success | makespan | formation loss | \
+        "| map | agents | density | method | runs | success | stalled | makespan | formation loss | \
          runtime s | paper: makespan | paper: formation loss | paper: success | paper: runtime s |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let opt =
         |v: Option<f64>, digits: usize| v.map_or("—".to_owned(), |v| format!("{v:.digits$}"));
@@ -138,12 +143,13 @@ pub fn markdown(cases: &[Case], cells: &[Cell]) -> String {
                 format!("{}² (row {}²)", case.side, case.paper.map_or(case.side, |p| p.side))
             };
             out.push_str(&format!(
-                "| {map} | {} | {} | {} | {} | {:.2} | {} | {} | {:.4} | {paper} |\n",
+                "| {map} | {} | {} | {} | {} | {:.2} | {} | {} | {} | {:.4} | {paper} |\n",
                 case.agents,
                 case.density,
                 cell.method,
                 cell.runs,
                 cell.success_rate,
+                cell.stalled,
                 opt(cell.makespan, 1),
                 opt(cell.formation_loss, 3),
                 cell.runtime_s,

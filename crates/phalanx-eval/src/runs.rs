@@ -41,6 +41,9 @@ pub struct BenchSettings {
     pub e2e: Option<String>,
     /// The centralised baseline's checksum, when given.
     pub ctce: Option<String>,
+    /// The imitation student's checksum, when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imitation: Option<String>,
     /// The cases' labels, in order.
     pub cases: Vec<String>,
 }

@@ -151,6 +151,10 @@ pub struct SolveSummary {
     /// For a learned policy, the agent decisions of every rollout.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub decisions: Option<u64>,
+    /// For a learned policy that did not reach the goals, how its best rollout ended:
+    /// `standing` or `oscillating` (`phalanx_core::Stall`); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stall: Option<String>,
 }
 
 impl SolveSummary {
@@ -190,6 +194,7 @@ impl SolveSummary {
             violation,
             metrics,
             decisions: None,
+            stall: None,
         }
     }
 
@@ -204,6 +209,9 @@ impl SolveSummary {
         ];
         if let Some(decisions) = self.decisions {
             lines.push(format!("decisions: {decisions}"));
+        }
+        if let Some(stall) = &self.stall {
+            lines.push(format!("stall: {stall}"));
         }
         if let Some(violation) = &self.violation {
             lines.push(format!("violation: {violation}"));

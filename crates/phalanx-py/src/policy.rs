@@ -15,7 +15,8 @@ use rand_chacha::ChaCha8Rng;
 use crate::world::World;
 use crate::{bad, error};
 
-/// A learned policy of the five moves: `pathfinding`, `formation`, `e2e` or `ctce`.
+/// A learned policy of the five moves: `pathfinding`, `formation`, `e2e`, `ctce` or
+/// `imitation`.
 #[pyclass(name = "Policy", module = "phalanx._phalanx", unsendable)]
 pub(crate) struct PyPolicy {
     // Boxed: a Python object is only 16-byte aligned, and parts of these are aligned more.

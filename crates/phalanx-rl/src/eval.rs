@@ -14,7 +14,7 @@
 //! [`Rollouts`] come from seeded streams, so the figures depend only on the policy, the
 //! instances and the seed (not on the thread count).
 
-use phalanx_core::{Instance, Plan, PlanMetrics, ViolationKind, validate};
+use phalanx_core::{Instance, Plan, PlanMetrics, Stall, ViolationKind, validate};
 use phalanx_env::{Choice, Env, EnvConfig, EnvError, ObsBuffers, StepOut, Task, TaskEnv};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -52,6 +52,10 @@ pub struct EvalEpisode {
     pub formation_share: Option<f64>,
     /// Agent decisions of every rollout of the instance (agents × steps, summed).
     pub decisions: u64,
+    /// Short of the goals: whether the team ended standing still or oscillating
+    /// ([`Stall`]).
+    #[serde(skip)]
+    pub stall: Option<Stall>,
     /// The joint positions of every step, starts first.
     #[serde(skip)]
     pub plan: Plan,
@@ -329,6 +333,7 @@ impl<'a> Tracks<'a> {
                     final_formation_loss: m.formation_loss_per_step.last().copied().unwrap_or(0.0),
                     formation_share,
                     decisions: (instance.n_agents() * plan.horizon()) as u64,
+                    stall: Stall::of(&plan, instance.goals()),
                     plan,
                     choices,
                 }
@@ -454,6 +459,10 @@ pub struct EvalSummary {
     pub formation_loss: f64,
     /// Mean `L_f` after the last step.
     pub final_formation_loss: f64,
+    /// Episodes that ended short of the goals with the team standing still.
+    pub standing: usize,
+    /// Episodes that ended short of the goals with the team oscillating.
+    pub oscillating: usize,
 }
 
 impl EvalSummary {
@@ -480,6 +489,8 @@ impl EvalSummary {
             formation_loss: episodes.iter().map(|it| it.formation_loss).sum::<f64>() / n,
             final_formation_loss: episodes.iter().map(|it| it.final_formation_loss).sum::<f64>()
                 / n,
+            standing: episodes.iter().filter(|it| it.stall == Some(Stall::Standing)).count(),
+            oscillating: episodes.iter().filter(|it| it.stall == Some(Stall::Oscillating)).count(),
         }
     }
 }

@@ -23,9 +23,12 @@ use phalanx_plan::swarm::SubSolver;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+
+use crate::policy::Policy;
 use serde::{Deserialize, Serialize};
 
 pub mod file;
+pub mod learn;
 
 pub use file::{DataError, Dataset};
 
@@ -99,6 +102,23 @@ pub struct DataConfig {
     pub expert: ExpertChoice,
     /// Node limit of one expert call (of each local joint-state A\* search); default 20 000.
     pub node_limit: u64,
+    /// When given, the team is moved by a student policy instead of the noisy expert (a
+    /// DAgger round, [`generate_with`]); `noise` is then unused.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub student: Option<StudentRollouts>,
+}
+
+/// What a DAgger round's data file records of the student that moved the team.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudentRollouts {
+    /// The DAgger round (1 is the first after cloning).
+    pub round: u32,
+    /// The CRC-32 of the student's network (`phalanx_rl::policy_file::network_checksum`).
+    pub network: u32,
+    /// Probability, per agent and step, of a uniformly random action instead of the
+    /// student's greedy one.
+    pub epsilon: f64,
 }
 
 impl Default for DataConfig {
@@ -114,6 +134,7 @@ impl Default for DataConfig {
             noise: 0.05,
             expert: ExpertChoice::SwarmJointAStar { w: 1.0 },
             node_limit: 20_000,
+            student: None,
         }
     }
 }
@@ -193,6 +214,35 @@ pub fn rollout(
     noise: f64,
     rng: &mut ChaCha8Rng,
 ) -> Result<(ExpertEpisode, ExpertStats), EnvError> {
+    rollout_with(env, instance, expert, rule, &mut |_env, _order, labels, taken| {
+        taken.copy_from_slice(labels);
+        if noise > 0.0 {
+            for a in taken.iter_mut() {
+                if rng.random_bool(noise) {
+                    *a = Action::ALL[rng.random_range(0..N_ACTIONS)];
+                }
+            }
+        }
+    })
+}
+
+/// Who moves the team in [`rollout_with`]: called at every step with the environment, the
+/// acting order, the expert's joint action (the labels) and the joint action to write.
+pub type Actor<'a> = dyn FnMut(&Env, &[u16], &[Action], &mut [Action]) + 'a;
+
+/// Plays one episode of `instance` in `env`, the joint action at each step chosen by `act`,
+/// the expert's answer at every state reached recorded as the labels; the acting order is
+/// `rule`'s. Ends as [`rollout`] does.
+///
+/// # Errors
+/// If the environment refuses the instance.
+pub fn rollout_with(
+    env: &mut Env,
+    instance: &Instance,
+    expert: &ExpertConfig,
+    rule: LeaderRule,
+    act: &mut Actor<'_>,
+) -> Result<(ExpertEpisode, ExpertStats), EnvError> {
     env.reset(instance)?;
     let n = instance.n_agents();
     let mut expert = Expert::new(instance, expert);
@@ -208,13 +258,7 @@ pub fn rollout(
         }
         let order = env.begin_turns(rule).to_vec();
         let mut taken = labels.clone();
-        if noise > 0.0 {
-            for a in &mut taken {
-                if rng.random_bool(noise) {
-                    *a = Action::ALL[rng.random_range(0..N_ACTIONS)];
-                }
-            }
-        }
+        act(env, &order, &labels, &mut taken);
         let step = env.step(&taken);
         let (terminated, truncated) = (step.terminated, step.truncated);
         steps.push(ExpertStep { positions, order, expert: labels.clone(), taken });
@@ -263,9 +307,42 @@ pub fn generate(
     config: &DataConfig,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Dataset, GenerateStats), DataError> {
+    generate_with(config, None, progress)
+}
+
+/// [`generate`], the team moved by `student` (greedy, random actions at the rate of
+/// `config.student`) instead of the noisy expert when given: a DAgger round's data, every
+/// state the student reaches labelled by the expert.
+///
+/// # Errors
+/// As [`generate`]; also when `student` and `config.student` are not both given or both
+/// absent, or the student's network does not read this environment's observations.
+pub fn generate_with(
+    config: &DataConfig,
+    student: Option<&Policy>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Dataset, GenerateStats), DataError> {
     check_config(config)?;
     let pool = TrainPool::new(&config.pool).map_err(DataError::Pool)?;
-    Env::new(config.env.clone()).map_err(DataError::Pool)?;
+    let probe = Env::new(config.env.clone()).map_err(DataError::Pool)?;
+    let epsilon = match (student, &config.student) {
+        (None, None) => None,
+        (Some(policy), Some(rollouts)) => {
+            let net = policy.config();
+            let shape = probe.obs_shape();
+            let fits = (net.channels, net.fov, net.env_vec, net.n_actions)
+                == (shape.channels, shape.fov, shape.env_vec, shape.n_actions);
+            if !fits || config.agents.iter().any(|&n| n > net.n_agents_max) {
+                return Err(DataError::Settings(format!(
+                    "student: a network of {} channels, field of view {}, vector {}, {} \
+                     actions and {} agent slots does not act in this environment",
+                    net.channels, net.fov, net.env_vec, net.n_actions, net.n_agents_max
+                )));
+            }
+            Some(rollouts.epsilon)
+        }
+        _ => return Err(DataError::Settings("student: rollouts need the student's policy".into())),
+    };
     let expert = config.expert.config(config.node_limit);
     let mut episodes = Vec::with_capacity(config.episodes as usize);
     let mut stats = GenerateStats::default();
@@ -279,15 +356,28 @@ pub fn generate(
                 let n_agents = config.agents[rng.random_range(0..config.agents.len())];
                 let instance = pool.sample_episode(n_agents, config.wide_share, &mut rng);
                 let mut env = Env::new(config.env.clone()).expect("checked above");
-                let (mut episode, counts) = rollout(
-                    &mut env,
-                    &instance,
-                    &expert,
-                    config.leader_rule,
-                    config.noise,
-                    &mut rng,
-                )
-                .expect("pool instances fit the environment");
+                let rule = config.leader_rule;
+                let played = match (student, epsilon) {
+                    (Some(policy), Some(epsilon)) => {
+                        let mut policy = policy.clone();
+                        policy.reset();
+                        let mut obs = ObsBuffers::new(n_agents, env.obs_shape());
+                        let mut chosen = vec![0_u8; n_agents];
+                        let mut act =
+                            |env: &Env, order: &[u16], _: &[Action], taken: &mut [Action]| {
+                                env.observe(&mut obs);
+                                obs.order.clear();
+                                obs.order.extend(order.iter().map(|&agent| usize::from(agent)));
+                                policy.act(&obs, epsilon, &mut rng, &mut chosen);
+                                for (a, &c) in taken.iter_mut().zip(&chosen) {
+                                    *a = Action::ALL[usize::from(c)];
+                                }
+                            };
+                        rollout_with(&mut env, &instance, &expert, rule, &mut act)
+                    }
+                    _ => rollout(&mut env, &instance, &expert, rule, config.noise, &mut rng),
+                };
+                let (mut episode, counts) = played.expect("pool instances fit the environment");
                 episode.index = index;
                 progress(1);
                 (episode, counts)
@@ -314,6 +404,11 @@ fn check_config(config: &DataConfig) -> Result<(), DataError> {
     }
     if !(0.0..=1.0).contains(&config.noise) {
         return bad(format!("noise: {} is not a probability", config.noise));
+    }
+    if let Some(student) = &config.student
+        && !(0.0..=1.0).contains(&student.epsilon)
+    {
+        return bad(format!("student.epsilon: {} is not a probability", student.epsilon));
     }
     if !(0.0..=1.0).contains(&config.wide_share) {
         return bad(format!("wide_share: {} is not a probability", config.wide_share));

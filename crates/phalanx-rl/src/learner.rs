@@ -13,6 +13,7 @@
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::activation::log_softmax;
 use burn::tensor::{Bool, Device, Int, Tensor, TensorData};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -33,6 +34,17 @@ pub struct UpdateStats {
     pub td_loss: f32,
     /// Mean team Q of the taken actions over filled transitions.
     pub q_taken: f32,
+    /// Global gradient norm before clipping.
+    pub grad_norm: f32,
+}
+
+/// What one behaviour-cloning update ([`Learner::imitation_update_on`]) reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImitationStats {
+    /// Mean cross-entropy of the labels under the masked action scores, over filled rows.
+    pub loss: f32,
+    /// Share of filled rows whose greedy action (masked argmax) is the label.
+    pub accuracy: f32,
     /// Global gradient norm before clipping.
     pub grad_norm: f32,
 }
@@ -179,6 +191,76 @@ impl Learner {
         let replay = &self.replays[ready[(self.counters.updates % ready.len() as u64) as usize]];
         let batch = replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng);
         Some(self.update_on(&batch))
+    }
+
+    /// One behaviour-cloning update on a batch sampled as [`Learner::update`] samples (the
+    /// buffers holding `learning_starts` episodes take turns); `None` while none does.
+    pub fn imitation_update(&mut self) -> Option<ImitationStats> {
+        let ready: Vec<usize> = (0..self.replays.len())
+            .filter(|&idx| self.replays[idx].len() >= self.config.learning_starts.max(1))
+            .collect();
+        if ready.is_empty() {
+            return None;
+        }
+        let replay = &self.replays[ready[(self.counters.updates % ready.len() as u64) as usize]];
+        let batch = replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng);
+        Some(self.imitation_update_on(&batch))
+    }
+
+    /// One behaviour-cloning update on `batch`, whose actions are the expert's labels
+    /// (`docs/imitation.md`): the cross-entropy of each agent's label under the softmax of
+    /// its masked action scores, each agent's message holding the labels of the agents
+    /// ranked before it (what it sees at test time when they act as the expert would),
+    /// averaged over filled rows; global-norm clipping, Adam. The target network follows the
+    /// online one (cloning has no bootstrap).
+    pub fn imitation_update_on(&mut self, batch: &Batch) -> ImitationStats {
+        let cfg = &self.net_config;
+        let (n_batch, n_agents, len) = (batch.batch, batch.n_agents, batch.len);
+        let (n_obs, n_actions, rows) = (len + 1, cfg.n_actions, batch.batch * batch.n_agents);
+        let ranks = ranks_of(&batch.order, n_batch * n_obs, n_agents);
+        let teams = vec![n_agents; n_batch];
+        let (obs, vec) = batch_inputs(batch, cfg, &self.device);
+        let (features, _) = self.online.forward_recurrent(obs, vec, None, &teams); // [B*N, L+1, H]
+        let labels = pad_actions(&batch.actions, rows, len);
+        let msgs = messages(&ranks, &labels, batch, cfg, n_agents); // [B, N, L+1, M]
+        let msgs = tensor3(msgs, [rows, n_obs, cfg.message_dim()], &self.device);
+        let scores = self.online.head(features, msgs); // [B*N, L+1, A]
+        let allowed = Tensor::<3, Bool>::from_data(
+            TensorData::new(batch.action_mask.clone(), [rows, n_obs, n_actions]),
+            &self.device,
+        );
+        let scores = mask_q(scores, allowed).narrow(1, 0, len); // [B*N, L, A]
+        let log_p = log_softmax(scores.clone(), 2); // [B*N, L, A]
+        let idx: Vec<i64> = batch.actions.iter().map(|&a| i64::from(a)).collect();
+        let idx = Tensor::<3, Int>::from_data(TensorData::new(idx, [rows, len, 1]), &self.device);
+        let chosen = log_p.gather(2, idx).reshape([rows, len]); // [B*N, L]
+        let mut filled = Vec::with_capacity(rows * len);
+        for b in 0..n_batch {
+            for _agent in 0..n_agents {
+                filled.extend_from_slice(&batch.filled[b * len..(b + 1) * len]);
+            }
+        }
+        let n_filled = filled.iter().sum::<f32>().max(1.0);
+        let greedy = to_vec(scores.detach()); // [B*N, L, A]
+        let correct: f32 = (0..rows * len)
+            .filter(|&row| filled[row] > 0.0)
+            .filter(|&row| {
+                let q = &greedy[row * n_actions..(row + 1) * n_actions];
+                let best = (0..n_actions).fold(0, |best, a| if q[a] > q[best] { a } else { best });
+                best == usize::from(batch.actions[row])
+            })
+            .count() as f32;
+        let filled = tensor2(filled, [rows, len], &self.device); // [B*N, L]
+        let loss = (chosen * filled).sum().neg().div_scalar(n_filled); // [1]
+        let value = to_vec(loss.clone().detach())[0];
+        let mut grads = GradientsParams::from_grads(loss.backward(), &self.online);
+        let grad_norm = clip_global_norm(&self.online, &mut grads, self.config.grad_clip_norm);
+        self.online = self.optim.step(self.config.lr, self.online.clone(), grads);
+        self.counters.updates += 1;
+        if self.counters.updates.is_multiple_of(self.config.target_update_interval.max(1)) {
+            self.target = self.online.valid();
+        }
+        ImitationStats { loss: value, accuracy: correct / n_filled, grad_norm }
     }
 
     /// One gradient update on the given batch.

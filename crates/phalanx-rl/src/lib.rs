@@ -66,7 +66,7 @@ pub use hierarchy::{
     Episodes, FormationWeight, Hierarchy, LowLevel, MetaInfo, MetaPolicy, Multiples, PolicyRef,
     ScriptedMeta,
 };
-pub use learner::{Counters, EpsilonSchedule, Learner, LearnerConfig, UpdateStats};
+pub use learner::{Counters, EpsilonSchedule, ImitationStats, Learner, LearnerConfig, UpdateStats};
 pub use meta_env::{MetaEnv, MetaEnvConfig};
 pub use net::{EncoderConfig, NetConfigError, QNet, QNetConfig, RecurrentState};
 pub use policy::{Policy, RecurrentStateError};

@@ -151,10 +151,11 @@ pub fn load_with_header(
 /// The shipped policies by name, and what each is: the per-agent low-level networks (five
 /// actions) share one shape, the meta policy (two actions) records its low level, the
 /// centralised baseline reads the whole team.
-const KINDS: [(&str, &str); 5] = [
+const KINDS: [(&str, &str); 6] = [
     ("pathfinding", "low-level"),
     ("formation", "low-level"),
     ("e2e", "low-level"),
+    ("imitation", "low-level"),
     ("meta", "meta"),
     ("ctce", "centralised"),
 ];

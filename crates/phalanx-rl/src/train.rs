@@ -39,6 +39,17 @@ pub mod metrics {
     pub const SPS: &str = "perf/sps";
     /// Milliseconds per gradient update.
     pub const UPDATE_MS: &str = "perf/update_ms";
+    /// Behaviour cloning: mean cross-entropy of the expert's labels in an update.
+    pub const IMITATION_LOSS: &str = "losses/imitation_loss";
+    /// Behaviour cloning: share of an update's labels the network's greedy action matches.
+    pub const IMITATION_ACCURACY: &str = "charts/imitation_accuracy";
+    /// Imitation: samples (agents × steps) in the training data.
+    pub const IMITATION_SAMPLES: &str = "charts/imitation_samples";
+    /// Imitation: the greedy student's success rate on the validation instances.
+    pub const VAL_SUCCESS: &str = "val/success_rate";
+    /// Imitation: the greedy student's Table II formation loss on the validation instances
+    /// (mean over the rows of each row's mean).
+    pub const VAL_FORMATION_LOSS: &str = "val/formation_loss";
 }
 
 /// Receives `(name, env_step, value)` for every logged metric.

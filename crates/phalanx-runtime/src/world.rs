@@ -3,7 +3,7 @@
 
 use phalanx_core::{Action as Move, Instance, Plan};
 use phalanx_env::obs::N_ACTIONS;
-use phalanx_env::{Choice, EnvConfig, EnvError, HierEnv, MetaInputs, ObsBuffers, Task, TaskEnv};
+use phalanx_env::{Choice, EnvConfig, EnvError, HierEnv, MetaInputs, ObsBuffers, TaskEnv};
 use phalanx_msg::{Action, End, EndReason, Frame, Message, NEAR, Near, Observation};
 
 use crate::Topic;
@@ -76,14 +76,15 @@ pub struct World {
 }
 
 impl World {
-    /// Episode `episode` on `instance` for a team of the path-finding policy, with the
-    /// path-finding task of `config`.
+    /// Episode `episode` on `instance` for a team of one flat policy, with the field of view,
+    /// step limit and task of `config`: the path-finding task for the path-finding policy,
+    /// the meta task (formation clipping) for the imitation student.
     ///
     /// # Errors
     /// If the environment refuses the instance.
     pub fn new(instance: &Instance, config: EnvConfig, episode: u32) -> Result<World, WorldFault> {
         let n = instance.n_agents();
-        let mut env = TaskEnv::new(Task::PathFinding, config, n)?;
+        let mut env = TaskEnv::new(config.task, config, n)?;
         let mut obs = ObsBuffers::new(n, env.obs_shape());
         env.reset_to(instance, &mut obs)?;
         let positions = env.env().positions().to_vec();

@@ -8,6 +8,7 @@ use phalanx_core::{DistanceMap, Instance, Plan};
 use phalanx_io::PlanStats;
 
 mod hostile;
+mod imitation;
 mod kill;
 mod models;
 mod motion;

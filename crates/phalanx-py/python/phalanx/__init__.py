@@ -8,7 +8,7 @@
   actions already chosen this step by those before it (the paper's communication scheme);
 - ``generate``, ``read_instance``, ``solve``, ``validate``: instances, every planner and
   learned solver by name, and the one validator with its metrics;
-- ``load_policy("pathfinding" | "formation" | "e2e" | "ctce" | "hrl")``: the shipped policies, with an
+- ``load_policy("pathfinding" | "formation" | "e2e" | "ctce" | "imitation" | "hrl")``: the shipped policies, with an
   ``act(observations)`` that carries the recurrent state.
 
 Bad input raises ``PhalanxError`` (a ``ValueError``) with the Rust message.

@@ -20,8 +20,8 @@ Observations = dict[str, dict[str, np.ndarray]]
 
 
 class Policy:
-    """A learned policy of the five moves (``pathfinding``, ``formation``, ``e2e`` or
-    ``ctce``)."""
+    """A learned policy of the five moves (``pathfinding``, ``formation``, ``e2e``,
+    ``ctce`` or ``imitation``)."""
 
     def __init__(self, name: str, weights: str | os.PathLike | None = None) -> None:
         self.name = name
@@ -84,11 +84,12 @@ def load_policy(
 ) -> Policy | HierarchicalPolicy:
     """A shipped policy (``models/<name>``) or the one in ``weights``: ``pathfinding``,
     ``formation``, ``e2e``, ``ctce`` (the centralised baseline: it acts for the whole team at
-    once) or ``hrl`` (the hierarchy over the low level it was trained over)."""
+    once), ``imitation`` (the student of the centralised expert, on the meta task's
+    observations) or ``hrl`` (the hierarchy over the low level it was trained over)."""
     if name == "hrl":
         return HierarchicalPolicy(weights)
-    if name not in ("pathfinding", "formation", "e2e", "ctce"):
+    if name not in ("pathfinding", "formation", "e2e", "ctce", "imitation"):
         raise _phalanx.PhalanxError(
-            f"policy {name!r}: pathfinding, formation, e2e, ctce or hrl"
+            f"policy {name!r}: pathfinding, formation, e2e, ctce, imitation or hrl"
         )
     return Policy(name, weights)

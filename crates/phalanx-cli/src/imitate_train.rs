@@ -1,0 +1,442 @@
+//! `phalanx train imitation`: behaviour cloning on expert data, then DAgger rounds
+//! (`phalanx_rl::imitation::learn`, `docs/imitation.md`), with the progress bars, metrics,
+//! curves, atomic checkpoints and exact resume of the other training tasks.
+//!
+//! The run folder holds:
+//! - `config.json`, the run's `ImitationConfig`;
+//! - `data-0.bin` (the expert's data) and `data-K.bin` (round K's student rollouts, labelled
+//!   by the expert), each written atomically once and read again on resume;
+//! - `checkpoint` (learner, optimiser, RNG, counters) every `checkpoint_every` updates and
+//!   at the end of every round; `round-K.bin`, the policy at the end of round K;
+//! - `validation.jsonl`, one line per round: the greedy student on the first
+//!   `validation_maps` instances of every Table II row of the validation stream;
+//! - `policy.bin`, the round with the best validation figures (success, then loss), and
+//!   `metrics.jsonl` and `curves.svg`, the step axis counting updates.
+
+use std::fs;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use burn::tensor::Device;
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
+use phalanx_core::{Instance, PlanMetrics};
+use phalanx_env::{EnvConfig, Task};
+use phalanx_eval::Case;
+use phalanx_rl::imitation::learn::{ImitationConfig, add_to_learner};
+use phalanx_rl::imitation::{self, Dataset};
+use phalanx_rl::policy_file::network_checksum;
+use phalanx_rl::{Learner, Policy, Rollouts, evaluate, metrics};
+use serde::{Deserialize, Serialize};
+
+use crate::{plot, util};
+
+/// What `phalanx train imitation` reads from the command line.
+pub(crate) struct ImitationArgs {
+    pub(crate) config: Option<PathBuf>,
+    pub(crate) out: PathBuf,
+    pub(crate) resume: bool,
+    pub(crate) seed: u64,
+    /// Stop after this many updates (the run's total when larger).
+    pub(crate) steps: Option<u64>,
+    pub(crate) maps: Vec<PathBuf>,
+}
+
+/// One round's validation figures (a line of `validation.jsonl`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Validation {
+    round: u32,
+    updates: u64,
+    /// Mean success over the rows.
+    success: f64,
+    /// Mean over the rows of each row's mean Table II formation loss (solved instances).
+    formation_loss: f64,
+    /// Per row: label, success, makespan and loss of the solved instances.
+    rows: Vec<(String, f64, f64, f64)>,
+}
+
+impl Validation {
+    /// Whether `self` is better than `other`: higher success, then lower loss.
+    fn beats(&self, other: &Validation) -> bool {
+        (self.success, -self.formation_loss) > (other.success, -other.formation_loss)
+    }
+}
+
+/// Runs `phalanx train imitation`.
+pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
+    let dir = &args.out;
+    let saved = dir.join("config.json");
+    let mut config = match (&args.config, args.resume) {
+        (Some(path), _) => read_config(path)?,
+        (None, true) if saved.exists() => read_config(&saved)?,
+        (None, _) => ImitationConfig::default(),
+    };
+    if !args.maps.is_empty() {
+        config.data.pool.maps.clone_from(&args.maps);
+    }
+    config.check().map_err(|err| anyhow::anyhow!("imitation settings: {err}"))?;
+    let device = Device::flex().autodiff();
+    let checkpoint = dir.join("checkpoint");
+    let mut learner = if args.resume {
+        Learner::load(&checkpoint, &device).context("resuming")?
+    } else {
+        let mut learner = Learner::new(
+            config.net.clone(),
+            config.learner_config(),
+            &config.data.agents,
+            args.seed,
+            &device,
+        );
+        if let Some(path) = &config.init_from {
+            learner.init_from(path).context("warm start (init_from)")?;
+        }
+        learner
+    };
+    anyhow::ensure!(
+        learner.net_config() == &config.net,
+        "{}: the checkpoint's network is not the one of the settings",
+        checkpoint.display()
+    );
+    if !config.data.pool.maps.is_empty() {
+        phalanx_env::TrainPool::new(&config.data.pool).context("the training pool")?;
+    }
+    let validation = validation_instances(&config)?;
+    util::written(fs::create_dir_all(dir), dir)?;
+    if !args.resume {
+        forget_rounds(dir)?;
+    }
+    let json = serde_json::to_string_pretty(&config).expect("the settings serialise") + "\n";
+    util::written(phalanx_io::write_text(&saved, &json), &saved)?;
+
+    let total = config.total_updates().expect("checked");
+    let stop = args.steps.map_or(total, |steps| steps.min(total));
+    let mut sink = Metrics::open(dir, args.resume.then(|| learner.counters().updates))?;
+    let started = Instant::now();
+    let mut samples = 0;
+    let mut best = read_best(dir)?;
+    for round in 0..=config.rounds {
+        let end = config.round_end(round);
+        let data = round_data(&config, dir, round, &learner)?;
+        samples += add_to_learner(&mut learner, &data)
+            .with_context(|| format!("the data of round {round}"))?;
+        let before = learner.counters().updates;
+        if before >= end {
+            continue;
+        }
+        let start = if round == 0 { 0 } else { config.round_end(round - 1) };
+        if before == start {
+            sink.record(metrics::IMITATION_SAMPLES, before, samples as f64)?;
+        }
+        let bar = update_bar(total, before);
+        let mut last = Instant::now();
+        while learner.counters().updates < end.min(stop) {
+            let stats = learner.imitation_update().expect("the data has episodes");
+            let updates = learner.counters().updates;
+            sink.record(metrics::IMITATION_LOSS, updates, f64::from(stats.loss))?;
+            sink.record(metrics::IMITATION_ACCURACY, updates, f64::from(stats.accuracy))?;
+            sink.record(metrics::GRAD_NORM, updates, f64::from(stats.grad_norm))?;
+            sink.record(metrics::UPDATE_MS, updates, last.elapsed().as_secs_f64() * 1e3)?;
+            last = Instant::now();
+            bar.set_position(updates);
+            bar.set_message(format!(
+                "| round {round} of {}, loss {:.3}, accuracy {:.3}",
+                config.rounds, stats.loss, stats.accuracy
+            ));
+            if updates.is_multiple_of(config.checkpoint_every) && updates < end {
+                save(&learner, dir, &mut sink)?;
+            }
+        }
+        bar.finish_and_clear();
+        let updates = learner.counters().updates;
+        if updates < end {
+            save(&learner, dir, &mut sink)?;
+            break;
+        }
+        // The end of a round: its policy, its validation, the best so far as policy.bin.
+        let snapshot = dir.join(format!("round-{round}.bin"));
+        util::written(learner.save_policy(&snapshot), &snapshot)?;
+        let figures = validate(&learner.policy(), &validation, &config, round, updates)?;
+        sink.record(metrics::VAL_SUCCESS, updates, figures.success)?;
+        sink.record(metrics::VAL_FORMATION_LOSS, updates, figures.formation_loss)?;
+        append_validation(dir, &figures)?;
+        util::warn(&format!(
+            "round {round}: validation success {:.3}, Table II loss {:.3} (mean over the rows)",
+            figures.success, figures.formation_loss
+        ));
+        if best.as_ref().is_none_or(|b| figures.beats(b)) {
+            let policy = dir.join("policy.bin");
+            let bytes =
+                fs::read(&snapshot).with_context(|| format!("reading {}", snapshot.display()))?;
+            util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)?;
+            best = Some(figures);
+        }
+        save(&learner, dir, &mut sink)?;
+        if updates >= stop {
+            break;
+        }
+    }
+    let counters = learner.counters();
+    let best = best.map_or_else(
+        || "no round finished yet".to_owned(),
+        |b| format!("round {} (success {:.3}, loss {:.3})", b.round, b.success, b.formation_loss),
+    );
+    util::print(&util::table(&[
+        ("updates", format!("{} of {total}", counters.updates)),
+        ("samples", samples.to_string()),
+        ("seconds", format!("{:.1}", started.elapsed().as_secs_f64())),
+        ("policy.bin", best),
+        ("checkpoint", dir.join("checkpoint").display().to_string()),
+        ("curves", dir.join(CURVES).display().to_string()),
+    ]))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The training curves beside the metrics.
+const CURVES: &str = "curves.svg";
+
+/// The metrics file: JSON lines `{"name", "step", "value"}`, the step counting updates.
+struct Metrics {
+    out: BufWriter<fs::File>,
+    path: PathBuf,
+    dir: PathBuf,
+}
+
+impl Metrics {
+    /// Opens `DIR/metrics.jsonl`: truncated for a fresh run, cut back to the checkpoint's
+    /// `updates` and appended to for a resumed one.
+    fn open(dir: &Path, resumed_at: Option<u64>) -> anyhow::Result<Metrics> {
+        let path = dir.join("metrics.jsonl");
+        if let Some(updates) = resumed_at {
+            crate::train::cut_metrics(&path, updates)?;
+        }
+        let file = fs::OpenOptions::new()
+            .create(true)
+            .append(resumed_at.is_some())
+            .write(true)
+            .truncate(resumed_at.is_none())
+            .open(&path)
+            .with_context(|| format!("opening {}", path.display()))?;
+        Ok(Metrics { out: BufWriter::new(file), path, dir: dir.to_path_buf() })
+    }
+
+    fn record(&mut self, name: &str, step: u64, value: f64) -> anyhow::Result<()> {
+        let line = serde_json::json!({ "name": name, "step": step, "value": value });
+        util::written(writeln!(self.out, "{line}"), &self.path)
+    }
+
+    /// Flushes the metrics and redraws the curves.
+    fn flush(&mut self) -> anyhow::Result<()> {
+        util::written(self.out.flush(), &self.path)?;
+        let svg = self.dir.join(CURVES);
+        match plot::imitation_curves(&self.path, &svg) {
+            Ok(None) => {}
+            Ok(Some(line)) => util::warn(&format!(
+                "warning: {}:{line}: skipped lines that are not metrics in the curves",
+                self.path.display()
+            )),
+            Err(err) => util::warn(&format!("warning: no training curves: {err:#}")),
+        }
+        Ok(())
+    }
+}
+
+/// The metrics flushed, then the checkpoint written atomically.
+fn save(learner: &Learner, dir: &Path, sink: &mut Metrics) -> anyhow::Result<()> {
+    sink.flush()?;
+    let checkpoint = dir.join("checkpoint");
+    util::written(learner.save(&checkpoint), &checkpoint)
+}
+
+/// Removes what a previous run in `dir` left of its rounds (a fresh run keeps only
+/// `data-0.bin`, which it reads again when its settings are this run's: the same settings
+/// make the same expert data).
+fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
+    let entries = fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
+    for entry in entries {
+        let path = entry.with_context(|| format!("reading {}", dir.display()))?.path();
+        let name = path.file_name().and_then(|it| it.to_str()).unwrap_or_default();
+        let stale = name == "validation.jsonl"
+            || name.strip_prefix("round-").is_some_and(|it| it.ends_with(".bin"))
+            || name.strip_prefix("data-").is_some_and(|it| it != "0.bin" && it.ends_with(".bin"));
+        if stale {
+            util::written(fs::remove_file(&path), &path)?;
+        }
+    }
+    Ok(())
+}
+
+/// The progress bar over the run's updates.
+fn update_bar(total: u64, at: u64) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    let style = ProgressStyle::with_template(
+        "{elapsed_precise} [{bar:30}] {pos}/{len} updates, {ups} updates/s, eta {eta} {msg}",
+    )
+    .expect("a valid template")
+    .with_key("ups", |state: &ProgressState, out: &mut dyn std::fmt::Write| {
+        let _ = write!(out, "{:.1}", state.per_sec());
+    })
+    .progress_chars("=> ");
+    bar.set_style(style);
+    bar.set_position(at);
+    bar.reset_eta();
+    bar.enable_steady_tick(Duration::from_millis(500));
+    bar
+}
+
+/// Reads a settings file over the defaults.
+fn read_config(path: &Path) -> anyhow::Result<ImitationConfig> {
+    let text =
+        fs::read_to_string(path).with_context(|| format!("reading config {}", path.display()))?;
+    ImitationConfig::from_json(&text)
+        .map_err(|err| anyhow::anyhow!("parsing config {}: {err}", path.display()))
+}
+
+/// Round `round`'s data: read from `DIR/data-K.bin` when it is there (and was made with
+/// this run's settings), else generated (round 0: the expert's rollouts; round K: the
+/// student's, labelled by the expert) and written atomically.
+fn round_data(
+    config: &ImitationConfig,
+    dir: &Path,
+    round: u32,
+    learner: &Learner,
+) -> anyhow::Result<Dataset> {
+    let path = dir.join(format!("data-{round}.bin"));
+    let expected = if round == 0 {
+        config.data.clone()
+    } else {
+        let previous = dir.join(format!("round-{}.bin", round - 1));
+        let network =
+            network_checksum(&previous).with_context(|| format!("the student of round {round}"))?;
+        config.round_data(round, network)
+    };
+    if path.exists() {
+        let bytes = fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        let data =
+            Dataset::from_bytes(&bytes).with_context(|| format!("reading {}", path.display()))?;
+        anyhow::ensure!(
+            data.config == expected,
+            "{}: made with other settings than this run's round {round}",
+            path.display()
+        );
+        return Ok(data);
+    }
+    anyhow::ensure!(
+        learner.counters().updates <= config.round_end(round.wrapping_sub(1)) || round == 0,
+        "{}: missing, and the checkpoint is past the round that made it",
+        path.display()
+    );
+    let what = if round == 0 { "expert episodes" } else { "student episodes" };
+    let bar = crate::imitate::bar(expected.episodes, what);
+    let student: Option<Policy> = (round > 0).then(|| learner.policy());
+    let (data, _) = imitation::generate_with(&expected, student.as_ref(), &|n| bar.inc(n))
+        .with_context(|| format!("the data of round {round}"))?;
+    bar.finish_and_clear();
+    util::written(phalanx_io::write_bytes(&path, &data.to_bytes()), &path)?;
+    Ok(data)
+}
+
+/// The validation instances: the first `validation_maps` of every Table II row of the
+/// stream of `validation_seed` (never the test stream's seed of `phalanx bench`).
+fn validation_instances(config: &ImitationConfig) -> anyhow::Result<Vec<(String, Vec<Instance>)>> {
+    Case::table2(false)
+        .into_iter()
+        .filter(|case| config.validation_max_side.is_none_or(|side| case.side <= side))
+        .map(|case| {
+            let instances = (0..config.validation_maps)
+                .map(|index| case.instance(config.validation_seed, index).map(|(it, _)| it))
+                .collect::<Result<Vec<_>, _>>()
+                .with_context(|| format!("validation instances of {}", case.label))?;
+            Ok((case.label, instances))
+        })
+        .collect()
+}
+
+/// The greedy student on the validation instances.
+fn validate(
+    policy: &Policy,
+    rows: &[(String, Vec<Instance>)],
+    config: &ImitationConfig,
+    round: u32,
+    updates: u64,
+) -> anyhow::Result<Validation> {
+    let env = EnvConfig { fov: config.data.env.fov, ..EnvConfig::default() };
+    let mut figures = Vec::new();
+    for (label, instances) in rows {
+        let mut policy = policy.clone();
+        let episodes = evaluate(
+            &mut policy,
+            Task::Meta,
+            &env,
+            instances,
+            instances.len(),
+            Rollouts::default(),
+            &mut |_| {},
+        )
+        .with_context(|| format!("validating on {label}"))?;
+        let (mut solved, mut makespan, mut loss) = (0usize, 0.0, 0.0);
+        for (episode, instance) in episodes.iter().zip(instances) {
+            if episode.success {
+                let m = PlanMetrics::of(instance, &episode.plan);
+                solved += 1;
+                makespan += m.makespan as f64;
+                loss += m.formation_loss;
+            }
+        }
+        let per = |x: f64| x / solved.max(1) as f64;
+        let success = solved as f64 / instances.len().max(1) as f64;
+        figures.push((label.clone(), success, per(makespan), per(loss)));
+    }
+    let n = figures.len().max(1) as f64;
+    Ok(Validation {
+        round,
+        updates,
+        success: figures.iter().map(|it| it.1).sum::<f64>() / n,
+        formation_loss: figures.iter().map(|it| it.3).sum::<f64>() / n,
+        rows: figures,
+    })
+}
+
+/// Appends a round's figures to `DIR/validation.jsonl`, dropping lines of this round or
+/// later (a resumed run repeats the round it was in).
+fn append_validation(dir: &Path, figures: &Validation) -> anyhow::Result<()> {
+    let path = dir.join("validation.jsonl");
+    let mut kept: Vec<Validation> =
+        read_validations(&path)?.into_iter().filter(|it| it.round < figures.round).collect();
+    kept.push(figures.clone());
+    let text: String = kept
+        .iter()
+        .map(|it| {
+            serde_json::to_string(it).expect("figures serialise")
+                + "
+"
+        })
+        .collect();
+    util::written(phalanx_io::write_text(&path, &text), &path)
+}
+
+fn read_validations(path: &Path) -> anyhow::Result<Vec<Validation>> {
+    let text = match fs::read_to_string(path) {
+        Ok(text) => text,
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(err) => return Err(err).with_context(|| format!("reading {}", path.display())),
+    };
+    text.lines()
+        .enumerate()
+        .map(|(i, line)| {
+            serde_json::from_str(line).with_context(|| format!("{}:{}", path.display(), i + 1))
+        })
+        .collect()
+}
+
+/// The best round so far (of a resumed run).
+fn read_best(dir: &Path) -> anyhow::Result<Option<Validation>> {
+    let mut best: Option<Validation> = None;
+    for it in read_validations(&dir.join("validation.jsonl"))? {
+        if best.as_ref().is_none_or(|b| it.beats(b)) {
+            best = Some(it);
+        }
+    }
+    Ok(best)
+}

@@ -1,0 +1,57 @@
+//! `phalanx train imitation`: cloning then DAgger rounds, stopped anywhere with `--steps`
+//! and resumed, ends with exactly the data, metrics and policy of a run never stopped; its
+//! policy runs as the `imitation` method.
+
+use super::{check, learning, phalanx};
+
+/// A tiny run: a few 16² pool maps, teams of 3, the fast expert, two DAgger rounds,
+/// validation on the 20² rows only.
+const CONFIG: &str = r#"{
+    "data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4, "seed": 2,
+             "expert": "swarm"},
+    "batch_size": 2, "updates": 5, "rounds": 2, "round_episodes": 2, "round_updates": 4,
+    "checkpoint_every": 3, "validation_maps": 1, "validation_max_side": 20
+}"#;
+
+#[test]
+fn an_imitation_run_stopped_anywhere_resumes_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("cfg.json"), CONFIG).unwrap();
+    let train = |out: &str, extra: &[&str]| {
+        let args = [&["train", "imitation", "--config", "cfg.json", "--out", out][..], extra];
+        phalanx(d, &args.concat())
+    };
+    let (stdout, _) = check(&train("whole", &[]), 0);
+    assert!(stdout.contains("13 of 13"), "{stdout}");
+    // Stopped inside cloning, at a round's end, and inside the last round.
+    check(&train("parts", &["--steps", "4"]), 0);
+    for steps in ["9", "11", "13"] {
+        check(&train("parts", &["--resume", "--steps", steps]), 0);
+    }
+    let run = |name: &str| d.join(name);
+    assert_eq!(learning(&run("parts")), learning(&run("whole")), "the metrics differ");
+    for file in ["data-0.bin", "data-1.bin", "data-2.bin", "policy.bin", "round-2.bin"] {
+        let read = |name: &str| std::fs::read(run(name).join(file)).unwrap();
+        assert!(read("parts") == read("whole"), "{file} differs");
+    }
+    let validation = std::fs::read_to_string(run("parts").join("validation.jsonl")).unwrap();
+    assert_eq!(validation.lines().count(), 3, "{validation}");
+
+    // The student is a method of its own.
+    let inst = ["gen", "--size", "20", "--agents", "3", "--seed", "4", "-o", "inst.yaml"];
+    check(&phalanx(d, &inst), 0);
+    let solve = ["solve", "inst.yaml", "--planner", "imitation", "--weights", "whole", "--json"];
+    let out = phalanx(d, &solve);
+    assert!(matches!(out.status.code(), Some(0 | 1)), "{out:?}");
+    let eval = ["eval", "--policy", "imitation", "--weights", "whole", "--maps", "2"];
+    check(&phalanx(d, &eval), 0);
+    // Settings a run cannot follow are refused with the field.
+    std::fs::write(d.join("bad.json"), r#"{"round_epsilon": 3}"#).unwrap();
+    let bad = ["train", "imitation", "--config", "bad.json", "--out", "bad"];
+    let (_, stderr) = check(&phalanx(d, &bad), 2);
+    assert!(stderr.contains("round_epsilon"), "{stderr}");
+    let flag = ["train", "imitation", "--idle-cost", "1", "--out", "bad"];
+    let (_, stderr) = check(&phalanx(d, &flag), 2);
+    assert!(stderr.contains("--idle-cost"), "{stderr}");
+}

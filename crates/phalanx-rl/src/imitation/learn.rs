@@ -1,0 +1,374 @@
+//! Behaviour cloning and DAgger (`docs/imitation.md`, *The student*): the settings of a
+//! run, its schedule of rounds, and the expert data turned into the learner's episodes.
+//!
+//! A run trains one network of the end-to-end kind (five moves on the meta task, agents in
+//! leader order with the action messages) on the expert's labels:
+//! - round 0 clones the expert on the data of [`ImitationConfig::data`] for
+//!   [`ImitationConfig::updates`] updates;
+//! - each DAgger round `k` (1 to [`ImitationConfig::rounds`]) lets the student play
+//!   [`ImitationConfig::round_episodes`] fresh episodes of the training pool as it acts at
+//!   test time, has the expert label every state it reaches ([`super::generate_with`]), adds
+//!   them to what it has, and trains [`ImitationConfig::round_updates`] updates more on all of it.
+//!
+//! The schedule is a function of the update count alone, so a run resumed from a
+//! checkpoint knows which round it is in and which data files it needs.
+
+use std::path::PathBuf;
+
+use phalanx_env::{EnvConfig, LeaderRule, ObsBuffers, TaskEnv};
+use serde::{Deserialize, Serialize};
+
+use super::{DataConfig, DataError, Dataset, ExpertEpisode, StudentRollouts};
+use crate::learner::{Learner, LearnerConfig};
+use crate::net::QNetConfig;
+use crate::replay::{Episode, SequenceMode};
+
+/// Settings of an imitation run (`phalanx train imitation`; a settings file may give any
+/// subset of the fields).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ImitationConfig {
+    /// The cloning data: expert episodes on the training pool (teams of 3 to 8 by default).
+    pub data: DataConfig,
+    /// The student's network (five actions, the goal vector, 8 agent slots).
+    pub net: QNetConfig,
+    /// Adam's learning rate.
+    pub lr: f64,
+    /// Sequences per update.
+    pub batch_size: usize,
+    /// How sequences are cut (default whole episodes: the recurrent state as at test time).
+    pub sequence: SequenceMode,
+    /// Clip the global gradient norm to this value; `None`: no clip.
+    pub grad_clip_norm: Option<f32>,
+    /// Updates of round 0 (cloning).
+    pub updates: u64,
+    /// DAgger rounds after cloning.
+    pub rounds: u32,
+    /// Student episodes relabelled per DAgger round.
+    pub round_episodes: u64,
+    /// Updates after each DAgger round's data.
+    pub round_updates: u64,
+    /// The student's random-action rate in its DAgger rollouts.
+    pub round_epsilon: f64,
+    /// A checkpoint every this many updates (and at the end of every round).
+    pub checkpoint_every: u64,
+    /// Start from this checkpoint's or policy file's network.
+    pub init_from: Option<PathBuf>,
+    /// Validation after every round: this many instances of every Table II row.
+    pub validation_maps: u64,
+    /// The seed of the validation stream (the benchmark's test stream is seed 11).
+    pub validation_seed: u64,
+    /// Validate on the rows of maps at most this side only (`None`: every row).
+    pub validation_max_side: Option<u32>,
+}
+
+impl Default for ImitationConfig {
+    fn default() -> ImitationConfig {
+        ImitationConfig {
+            data: DataConfig {
+                agents: vec![3, 4, 5, 6, 7, 8],
+                episodes: 1500,
+                ..DataConfig::default()
+            },
+            net: QNetConfig::default(),
+            lr: 1e-3,
+            batch_size: 16,
+            sequence: SequenceMode::Episodes,
+            grad_clip_norm: Some(10.0),
+            updates: 3000,
+            rounds: 4,
+            round_episodes: 300,
+            round_updates: 1500,
+            round_epsilon: 0.0,
+            checkpoint_every: 250,
+            init_from: None,
+            validation_maps: 10,
+            validation_seed: 1,
+            validation_max_side: None,
+        }
+    }
+}
+
+impl ImitationConfig {
+    /// Parses a settings file's JSON over the defaults.
+    ///
+    /// # Errors
+    /// When the JSON does not parse (naming the line) or a value is out of range.
+    pub fn from_json(text: &str) -> Result<ImitationConfig, String> {
+        let config: ImitationConfig = serde_json::from_str(text).map_err(|err| format!("{err}"))?;
+        config.check()?;
+        Ok(config)
+    }
+
+    /// Refuses values a run cannot follow, naming the field and its value.
+    ///
+    /// # Errors
+    /// The first field out of range.
+    pub fn check(&self) -> Result<(), String> {
+        self.net.check().map_err(|err| format!("net: {err}"))?;
+        let net = &self.net;
+        if net.n_actions != phalanx_core::Action::COUNT || net.env_vec != 3 || net.centralised {
+            return Err(format!(
+                "net: the student is a decentralised network of 5 actions and a vector of 3 \
+                 (n_actions {}, env_vec {}, centralised {})",
+                net.n_actions, net.env_vec, net.centralised
+            ));
+        }
+        if self.data.env.fov as usize != net.fov {
+            return Err(format!("net.fov {} is not data.env.fov {}", net.fov, self.data.env.fov));
+        }
+        if let Some(&n) = self.data.agents.iter().find(|&&n| n == 0 || n > net.n_agents_max) {
+            return Err(format!("data.agents: {n} agents do not fit {} slots", net.n_agents_max));
+        }
+        if self.data.leader_rule != self.data.env.task.leader_rule() {
+            return Err(format!(
+                "data.leader_rule: {:?} is not the order the {:?} task acts in",
+                self.data.leader_rule, self.data.env.task
+            ));
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            return Err(format!("lr: {} is not a positive number", self.lr));
+        }
+        if self.batch_size == 0 || self.checkpoint_every == 0 {
+            return Err("batch_size and checkpoint_every must be at least 1".into());
+        }
+        if let SequenceMode::Windows { len: 0, .. } = self.sequence {
+            return Err("sequence: windows of 0 transitions".into());
+        }
+        if self.data.episodes == 0 || (self.rounds > 0 && self.round_episodes == 0) {
+            return Err("data.episodes and round_episodes must be at least 1".into());
+        }
+        if !(0.0..=1.0).contains(&self.round_epsilon) {
+            return Err(format!("round_epsilon: {} is not a probability", self.round_epsilon));
+        }
+        if self.grad_clip_norm.is_some_and(|it| !(it.is_finite() && it > 0.0)) {
+            return Err(format!("grad_clip_norm: {:?} is not positive", self.grad_clip_norm));
+        }
+        self.total_updates().map(|_| ()).ok_or_else(|| "the updates overflow".to_owned())
+    }
+
+    /// The learner's settings: Adam at `lr`, batches of `batch_size` sequences cut by
+    /// `sequence`, every episode kept (no replay eviction), an update as soon as one team
+    /// size has data.
+    pub fn learner_config(&self) -> LearnerConfig {
+        LearnerConfig {
+            lr: self.lr,
+            batch_size: self.batch_size,
+            replay_capacity: usize::MAX / 2,
+            sequence: self.sequence,
+            grad_clip_norm: self.grad_clip_norm,
+            learning_starts: 1,
+            target_update_interval: self.checkpoint_every,
+            ..LearnerConfig::default()
+        }
+    }
+
+    /// Updates of the whole run (`None` on overflow).
+    pub fn total_updates(&self) -> Option<u64> {
+        self.round_updates.checked_mul(u64::from(self.rounds))?.checked_add(self.updates)
+    }
+
+    /// The update count at which `round` ends (round 0 is cloning).
+    pub fn round_end(&self, round: u32) -> u64 {
+        self.updates + self.round_updates * u64::from(round)
+    }
+
+    /// The data settings of DAgger round `round` (1 on): `round_episodes` episodes from
+    /// their own seed, moved by the student whose network has the CRC-32 `network`.
+    pub fn round_data(&self, round: u32, network: u32) -> DataConfig {
+        DataConfig {
+            episodes: self.round_episodes,
+            seed: round_seed(self.data.seed, round),
+            student: Some(StudentRollouts { round, network, epsilon: self.round_epsilon }),
+            ..self.data.clone()
+        }
+    }
+}
+
+/// The seed of DAgger round `round`'s episodes: far from the cloning data's stream (episode
+/// `i` of round `k` draws from stream `i` of this seed).
+fn round_seed(seed: u64, round: u32) -> u64 {
+    seed.wrapping_add(u64::from(round).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+}
+
+/// The learner's episode of an expert episode: every step's observations in `env`
+/// (replayed with the actions taken), the acting order of `rule` and, as the actions, the
+/// expert's labels. `None` for an episode without steps.
+///
+/// # Errors
+/// If the environment refuses the instance or the replay leaves the recorded positions or
+/// order.
+pub fn learner_episode(
+    episode: &ExpertEpisode,
+    env: &EnvConfig,
+    rule: LeaderRule,
+) -> Result<Option<Episode>, DataError> {
+    if episode.steps.is_empty() {
+        return Ok(None);
+    }
+    let index = episode.index;
+    let n = episode.instance.n_agents();
+    let mut sim =
+        TaskEnv::new(env.task, env.clone(), n).map_err(|err| DataError::Env(index, err))?;
+    let mut obs = ObsBuffers::new(n, sim.obs_shape());
+    sim.reset_to(&episode.instance, &mut obs).map_err(|err| DataError::Env(index, err))?;
+    let mut out = Episode::start(&obs);
+    let n_actions = obs.shape.n_actions;
+    let mut labels = vec![0_u8; n];
+    let mut taken = vec![0_u8; n];
+    for (t, step) in episode.steps.iter().enumerate() {
+        if sim.env().positions() != step.positions.as_slice() {
+            return Err(DataError::Replay { episode: index, step: t, what: "positions" });
+        }
+        let order = obs.order.iter().map(|&agent| agent as u16);
+        if rule != env.task.leader_rule() || !order.eq(step.order.iter().copied()) {
+            return Err(DataError::Replay { episode: index, step: t, what: "acting order" });
+        }
+        for agent in 0..n {
+            labels[agent] = step.expert[agent].index() as u8;
+            taken[agent] = step.taken[agent].index() as u8;
+            // The label is always an allowed action (the expert moves into free cells).
+            let row = (out.len * n + agent) * n_actions;
+            out.action_mask[row + usize::from(labels[agent])] = true;
+        }
+        let done = sim.step(&taken, &mut obs);
+        out.push_step(&labels, 0.0, &obs);
+        out.terminated = done.terminated;
+    }
+    Ok(Some(out))
+}
+
+/// Adds every episode of `data` to `learner`'s buffers (as [`learner_episode`] makes them);
+/// returns the samples added (agents × steps).
+///
+/// # Errors
+/// As [`learner_episode`]; also for a team size the learner does not train.
+pub fn add_to_learner(learner: &mut Learner, data: &Dataset) -> Result<u64, DataError> {
+    let (env, rule) = (&data.config.env, data.config.leader_rule);
+    let mut samples = 0;
+    for episode in &data.episodes {
+        let n = episode.instance.n_agents();
+        if !learner.agent_counts().contains(&n) {
+            return Err(DataError::Settings(format!(
+                "episode {}: a team of {n}; the student trains teams of {:?}",
+                episode.index,
+                learner.agent_counts()
+            )));
+        }
+        if let Some(it) = learner_episode(episode, env, rule)? {
+            samples += (it.len * it.n_agents) as u64;
+            learner.store(it);
+        }
+    }
+    Ok(samples)
+}
+
+#[cfg(test)]
+mod tests {
+    use burn::tensor::Device;
+    use phalanx_env::PoolConfig;
+
+    use super::super::{ExpertChoice, for_each_sample, generate, generate_with};
+    use super::*;
+
+    /// A small run's settings: a few 16² pool maps, teams of 3 and 4, the fast expert.
+    fn small() -> ImitationConfig {
+        ImitationConfig {
+            data: DataConfig {
+                pool: PoolConfig { n_maps: 3, size: 16, ..PoolConfig::default() },
+                agents: vec![3, 4],
+                episodes: 6,
+                seed: 3,
+                noise: 0.1,
+                expert: ExpertChoice::Swarm,
+                ..DataConfig::default()
+            },
+            batch_size: 4,
+            ..ImitationConfig::default()
+        }
+    }
+
+    #[test]
+    fn the_learner_sees_what_the_samples_hold() {
+        let config = small();
+        let data = generate(&config.data, &|_| {}).unwrap().0;
+        for episode in &data.episodes {
+            let rule = config.data.leader_rule;
+            let it = learner_episode(episode, &config.data.env, rule).unwrap().unwrap();
+            let n = it.n_agents;
+            assert_eq!((it.len, n), (episode.steps.len(), episode.instance.n_agents()));
+            let grid = it.grid.len() / ((it.len + 1) * n);
+            let mut count = 0;
+            for_each_sample(episode, &config.data.env, rule, |s| {
+                let row = s.t * n + s.agent;
+                assert_eq!(&it.grid[row * grid..(row + 1) * grid], s.grid);
+                assert_eq!(&it.vec[row * 3..row * 3 + 3], s.vector);
+                assert_eq!(&it.action_mask[row * 5..row * 5 + 5], s.mask);
+                assert_eq!(it.order[s.t * n + s.rank], s.agent);
+                assert_eq!(usize::from(it.actions[row]), s.target.index());
+                count += 1;
+            })
+            .unwrap();
+            assert_eq!(count, it.len * n);
+        }
+    }
+
+    #[test]
+    fn cloning_fits_the_labels_and_the_student_can_be_relabelled() {
+        let config = small();
+        let device = Device::flex().autodiff();
+        let mut learner =
+            Learner::new(config.net.clone(), config.learner_config(), &[3, 4], 1, &device);
+        let data = generate(&config.data, &|_| {}).unwrap().0;
+        let samples = add_to_learner(&mut learner, &data).unwrap();
+        assert_eq!(samples, data.n_samples());
+        let first = learner.imitation_update().unwrap();
+        let mut last = first;
+        for _ in 0..60 {
+            last = learner.imitation_update().unwrap();
+        }
+        assert!(first.loss.is_finite() && last.loss < 0.7 * first.loss, "{first:?} -> {last:?}");
+        assert!(last.accuracy > first.accuracy, "{first:?} -> {last:?}");
+
+        // A DAgger round: the student moves the team, the expert labels every state.
+        let policy = learner.policy();
+        let round = ImitationConfig { round_episodes: 3, ..config.clone() }.round_data(1, 0);
+        let relabelled = generate_with(&round, Some(&policy), &|_| {}).unwrap().0;
+        assert_eq!(relabelled.episodes.len(), 3);
+        assert!(relabelled.episodes.iter().all(|e| !e.steps.is_empty()));
+        add_to_learner(&mut learner, &relabelled).unwrap();
+        // The same round again is the same data (the student is greedy, the seed fixed).
+        assert_eq!(generate_with(&round, Some(&policy), &|_| {}).unwrap().0, relabelled);
+        // The settings and the student go together.
+        assert!(generate_with(&round, None, &|_| {}).is_err());
+        assert!(generate_with(&config.data, Some(&policy), &|_| {}).is_err());
+    }
+
+    #[test]
+    fn the_schedule_follows_the_update_count() {
+        let config =
+            ImitationConfig { updates: 100, rounds: 3, round_updates: 40, ..Default::default() };
+        assert_eq!(config.total_updates(), Some(220));
+        assert_eq!(
+            (config.round_end(0), config.round_end(1), config.round_end(3)),
+            (100, 140, 220)
+        );
+        let round = config.round_data(2, 7);
+        assert_eq!(round.episodes, config.round_episodes);
+        assert_ne!(round.seed, config.data.seed);
+        assert_ne!(round.seed, config.round_data(1, 7).seed);
+        assert_eq!(round.student.unwrap().round, 2);
+        config.check().unwrap();
+    }
+
+    #[test]
+    fn bad_settings_name_the_field() {
+        let bad = |text: &str| ImitationConfig::from_json(text).unwrap_err();
+        assert!(bad(r#"{"lr": -1}"#).contains("lr"));
+        assert!(bad(r#"{"round_epsilon": 2}"#).contains("round_epsilon"));
+        assert!(bad(r#"{"net": {"n_actions": 2}}"#).contains("5 actions"));
+        assert!(bad(r#"{"data": {"agents": [9]}}"#).contains("data.agents"));
+        assert!(bad("{\n \"rounds\": \"x\"}").contains("line 2"));
+        assert!(bad(r#"{"updates": 18446744073709551615, "rounds": 1}"#).contains("overflow"));
+    }
+}
