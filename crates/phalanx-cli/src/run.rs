@@ -170,9 +170,21 @@ pub(crate) struct RunCmd {
     /// Write the trajectory as a libMultiRobotPlanning plan (when it reaches the goals).
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Write the trajectory with -o also when it stops short of the goals (to look at a
+    /// failure; such a plan breaks the validator's last rule, goal not reached).
+    #[arg(long, requires = "output")]
+    partial: bool,
     /// Print one JSON object instead of `key: value` lines.
     #[arg(long)]
     json: bool,
+}
+
+/// Where `phalanx run` and `phalanx world` write the trajectory.
+pub(crate) struct PlanOut<'a> {
+    /// The plan file, if any.
+    pub(crate) path: Option<&'a Path>,
+    /// Also when the team stopped short of the goals.
+    pub(crate) partial: bool,
 }
 
 /// The flat policy `name` of `weights` (or the shipped one) for a team of `n` agents.
@@ -216,7 +228,7 @@ pub(crate) fn report(
     world: &World,
     end: End,
     runtime_s: f64,
-    output: Option<&Path>,
+    output: &PlanOut<'_>,
     json: bool,
 ) -> anyhow::Result<ExitCode> {
     let instance = &named.instance;
@@ -227,7 +239,8 @@ pub(crate) fn report(
     };
     let planner = format!("{} (decentralised)", policy.name());
     let summary = SolveSummary::of(instance, &planner, result, runtime_s);
-    if let (Some(path), Outcome::Solved) = (output, summary.outcome) {
+    let solved = summary.outcome == Outcome::Solved;
+    if let (Some(path), true) = (output.path, solved || output.partial) {
         let stats = PlanStats::of(plan, runtime_s);
         util::written(phalanx_io::write_plan_named(path, plan, &named.names, &stats), path)?;
     }
@@ -295,7 +308,8 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
         end
     })?;
     let runtime_s = started.elapsed().as_secs_f64();
-    report(&named, cmd.team.policy, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
+    let output = PlanOut { path: cmd.output.as_deref(), partial: cmd.partial };
+    report(&named, cmd.team.policy, &world, end, runtime_s, &output, cmd.json)
 }
 
 /// `phalanx run --processes`: starts `phalanx world` and one `phalanx agent` per agent (this
@@ -318,6 +332,9 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     }
     if let Some(output) = &cmd.output {
         world.arg("--output").arg(output);
+    }
+    if cmd.partial {
+        world.arg("--partial");
     }
     if cmd.json {
         world.arg("--json");

@@ -52,6 +52,9 @@ pub(crate) struct WorldCmd {
     /// Write the trajectory as a libMultiRobotPlanning plan (when it reaches the goals).
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Write the trajectory with -o also when it stops short of the goals.
+    #[arg(long, requires = "output")]
+    partial: bool,
     /// Print one JSON object instead of `key: value` lines.
     #[arg(long)]
     json: bool,
@@ -79,5 +82,6 @@ pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     // The agents leave once they hear the end; the world stays until they have (bounded), so
     // that the end reaches them before its session closes. Those that stay are not waited for.
     transport.wait_agents_left(Duration::from_secs(2));
-    run::report(&named, cmd.policy, &world, end, runtime_s, cmd.output.as_deref(), cmd.json)
+    let output = run::PlanOut { path: cmd.output.as_deref(), partial: cmd.partial };
+    run::report(&named, cmd.policy, &world, end, runtime_s, &output, cmd.json)
 }

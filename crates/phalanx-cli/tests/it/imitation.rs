@@ -6,7 +6,7 @@ use super::{check, learning, phalanx};
 
 /// A tiny run: a few 16² pool maps, teams of 3, the fast expert, two DAgger rounds,
 /// validation on the 20² rows only.
-const CONFIG: &str = r#"{
+pub(crate) const CONFIG: &str = r#"{
     "data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4, "seed": 2,
              "expert": "swarm"},
     "batch_size": 2, "updates": 5, "rounds": 2, "round_episodes": 2, "round_updates": 4,

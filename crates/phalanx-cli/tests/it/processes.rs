@@ -1,6 +1,7 @@
 //! Decentralised runs as processes over Zenoh (docs/runtime.md): `phalanx world` and one
 //! `phalanx agent` per agent give the plan of `phalanx solve --planner pathfinding --rollouts
-//! 1` (and with `--policy hrl` that of `--planner hrl`), on loopback and across two network
+//! 1` (with `--policy hrl` that of `--planner hrl`, with `--policy imitation` that of
+//! `--planner imitation`), on loopback and across two network
 //! namespaces joined by a veth pair; an agent killed mid-episode waits while the others go on
 //! and rejoins when restarted; agents stop with exit code 6 when the world is killed, for
 //! either policy. Every wait is bounded.
@@ -132,6 +133,32 @@ fn processes_over_zenoh_plan_what_the_batched_hierarchy_plans() {
     );
     let missed = ["missed_actions", "missed_choices", "stale_actions"].map(|k| v[k].as_u64());
     assert_eq!(missed, [Some(0); 3], "{json}");
+    assert_eq!(plan(d, "proc.yaml"), plan(d, "solve.yaml"));
+}
+
+#[test]
+fn processes_over_zenoh_plan_what_the_batched_imitation_student_plans() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("cfg.json"), crate::imitation::CONFIG).unwrap();
+    let train = ["train", "imitation", "--config", "cfg.json", "--out", "student"];
+    check(&phalanx(d, &train), 0);
+    let args = ["gen", "--size", "20", "--agents", "3", "--seed", "3", "-o", "inst.yaml"];
+    check(&phalanx(d, &args), 0);
+    // A student of a few updates rarely reaches the goals: the trajectories are compared
+    // whole, wherever they end (--partial).
+    let solve = ["solve", "inst.yaml", "--planner", "imitation", "--weights", "student"];
+    let solved =
+        phalanx(d, &[&solve[..], &["--rollouts", "1", "--partial", "-o", "solve.yaml"]].concat());
+    let code = solved.status.code();
+    assert!(matches!(code, Some(0 | 1)), "{solved:?}");
+    let args = ["run", "inst.yaml", "--processes", "--policy", "imitation", "--weights", "student"];
+    let ran = phalanx(d, &[&args[..], &["--partial", "-o", "proc.yaml", "--json"]].concat());
+    let (json, _) = check(&ran, code.unwrap());
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["planner"].as_str(), Some("imitation (decentralised)"), "{json}");
+    let missed = ["missed_actions", "stale_actions"].map(|k| v[k].as_u64());
+    assert_eq!(missed, [Some(0); 2], "{json}");
     assert_eq!(plan(d, "proc.yaml"), plan(d, "solve.yaml"));
 }
 
