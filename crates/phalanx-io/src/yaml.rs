@@ -226,6 +226,61 @@ fn split_obstacles(text: &str) -> Option<(Vec<[i64; 2]>, String)> {
     Some((pairs, rest))
 }
 
+/// The schedule of a plan written in the block layout phalanx and libMultiRobotPlanning
+/// write (`schedule:`, then per agent `  name:` and per step `    - x: X`, `      y: Y`,
+/// `      t: T`, the times `0, 1, …`), and the text with the schedule emptied
+/// (`schedule: {}`; it must run to the end of the text). Like
+/// [`split_obstacles`], it keeps serde_yaml from holding every event of a long plan (a plan
+/// of a million steps took 44 times its size); `None` for any other layout (flow steps,
+/// comments, quoted or numeric names, anything after the schedule, a path that breaks a
+/// rule): the whole text then goes to serde_yaml, which gives the result or the error.
+fn split_schedule(text: &str) -> Option<(Vec<ScheduleEntry>, String)> {
+    let lines: Vec<&str> = text.split_inclusive('\n').collect();
+    let content = |i: usize| lines[i].trim_end_matches(['\n', '\r']);
+    let mut keys = (0..lines.len()).filter(|&i| content(i).trim_end() == "schedule:");
+    let key = keys.next()?;
+    if keys.next().is_some() {
+        return None;
+    }
+    let value =
+        |line: &str, prefix: &str| -> Option<i64> { line.strip_prefix(prefix)?.parse().ok() };
+    let mut schedule: Vec<ScheduleEntry> = Vec::new();
+    let mut i = key + 1;
+    while i < lines.len() {
+        let line = content(i);
+        if let Some(name) = line.strip_prefix("  ").and_then(|it| it.strip_suffix(':')) {
+            let plain = name.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_')
+                && name.chars().all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c));
+            if !plain || schedule.iter().any(|e| e.name == name) {
+                return None;
+            }
+            schedule.push(ScheduleEntry { name: name.to_owned(), path: Vec::new(), line: i + 1 });
+            i += 1;
+        } else if let Some(x) = value(line, "    - x: ") {
+            let entry = schedule.last_mut()?;
+            if i + 2 >= lines.len() {
+                return None;
+            }
+            let y = value(content(i + 1), "      y: ")?;
+            let t = value(content(i + 2), "      t: ")?;
+            if t != entry.path.len() as i64 {
+                return None;
+            }
+            entry.path.push(Cell::new(i32::try_from(x).ok()?, i32::try_from(y).ok()?));
+            i += 3;
+        } else {
+            return None;
+        }
+    }
+    if schedule.is_empty() || schedule.iter().any(|e| e.path.is_empty()) {
+        return None;
+    }
+    // The schedule runs to the end of the text: the lines before it and an empty one.
+    let mut rest: String = lines[..key].concat();
+    rest.push_str("schedule: {}\n");
+    Some((schedule, rest))
+}
+
 fn coordinate(v: i64, line: usize) -> Result<i32, ParseError> {
     i32::try_from(v).map_err(|_| ParseError::new(line, ParseErrorKind::Coordinate(v)))
 }
@@ -389,6 +444,12 @@ impl YamlPlan {
             #[serde(default)]
             statistics: Option<PlanStats>,
             schedule: serde_yaml::Mapping,
+        }
+        if let Some((schedule, rest)) = split_schedule(text)
+            && let Ok(dto) = from_yaml::<PlanDto>(&rest)
+            && dto.schedule.is_empty()
+        {
+            return Ok(YamlPlan { statistics: dto.statistics, schedule });
         }
         let dto: PlanDto = from_yaml(text)?;
         let schedule_line = key_lines(text, "schedule").first().copied().unwrap_or(1);

@@ -1,4 +1,5 @@
-//! The obstacle list read line by line gives what serde_yaml gives, or is left to it.
+//! The obstacle list and the plan schedule read line by line give what serde_yaml gives, or
+//! are left to it.
 
 use super::*;
 
@@ -53,4 +54,57 @@ fn other_layouts_read_the_same() {
     for text in &texts {
         assert_eq!(fast(text), full(text), "{text}");
     }
+}
+
+/// The plan as serde_yaml alone reads it (the schedule's layout made unusual by a comment
+/// line at its end, which only the fallback accepts).
+fn plan_full(text: &str) -> Result<YamlPlan, ParseError> {
+    assert!(split_schedule(&format!("{text}# end\n")).is_none());
+    YamlPlan::parse(&format!("{text}# end\n"))
+}
+
+#[test]
+fn a_written_plan_is_read_line_by_line_as_serde_yaml_reads_it() {
+    let plan = Plan::from_paths(&[
+        vec![Cell::new(0, 0), Cell::new(1, 0), Cell::new(1, 1)],
+        vec![Cell::new(3, 3), Cell::new(-2, 3)],
+    ]);
+    let names = vec!["agent0".to_owned(), "b_1".to_owned()];
+    let text = YamlPlan::from_plan(&plan, &names, PlanStats::of(&plan, 0.5)).to_string();
+    let (schedule, _) = split_schedule(&text).expect("the written layout");
+    assert_eq!(schedule.len(), 2);
+    let fast = YamlPlan::parse(&text).unwrap();
+    assert_eq!(fast, plan_full(&text).unwrap());
+    assert_eq!(fast.to_plan(&names).unwrap(), plan);
+    assert_eq!(fast.schedule[1].line, text.lines().position(|l| l == "  b_1:").unwrap() + 1);
+    // CRLF line ends, and no statistics.
+    let crlf = text.replace('\n', "\r\n");
+    assert_eq!(YamlPlan::parse(&crlf).unwrap(), fast);
+    let bare = &text[text.find("schedule:").unwrap()..];
+    let paths = |plan: &YamlPlan| plan.to_plan(&names).unwrap();
+    assert_eq!(paths(&YamlPlan::parse(bare).unwrap()), plan);
+    assert_eq!(paths(&fast), plan);
+}
+
+#[test]
+fn other_plan_layouts_and_broken_plans_go_to_serde_yaml() {
+    let texts = [
+        // Flow steps, a quoted name, a numeric name, a key after the schedule.
+        "schedule:\n  a:\n    - {x: 0, y: 0, t: 0}\n".to_owned(),
+        "schedule:\n  \"a b\":\n    - x: 0\n      y: 0\n      t: 0\n".to_owned(),
+        "schedule:\n  7:\n    - x: 0\n      y: 0\n      t: 0\n".to_owned(),
+        "schedule:\n  a:\n    - x: 0\n      y: 0\n      t: 0\nstatistics:\n  cost: 0\n".to_owned(),
+        // Times out of order, a name twice, an empty path, a step cut short.
+        "schedule:\n  a:\n    - x: 0\n      y: 0\n      t: 1\n".to_owned(),
+        "schedule:\n  a:\n    - x: 0\n      y: 0\n      t: 0\n  a:\n    - x: 1\n      y: 0\n      t: 0\n".to_owned(),
+        "schedule:\n  a:\n".to_owned(),
+        "schedule:\n  a:\n    - x: 0\n      y: 0\n".to_owned(),
+    ];
+    for text in &texts {
+        assert!(split_schedule(text).is_none(), "{text}");
+        // Whatever serde_yaml says (a plan or an error) is the answer.
+        let _ = YamlPlan::parse(text);
+    }
+    let err = YamlPlan::parse(&texts[4]).unwrap_err();
+    assert!(err.to_string().contains("t"), "{err}");
 }
