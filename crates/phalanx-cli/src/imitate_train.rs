@@ -209,7 +209,7 @@ impl Metrics {
     fn open(dir: &Path, resumed_at: Option<u64>) -> anyhow::Result<Metrics> {
         let path = dir.join("metrics.jsonl");
         if let Some(updates) = resumed_at {
-            crate::train::cut_metrics(&path, updates)?;
+            util::cut_metrics(&path, updates)?;
         }
         let file = fs::OpenOptions::new()
             .create(true)

@@ -1,6 +1,7 @@
 //! Helpers shared by the subcommands: exit codes, reading instances with context, and
 //! printing tables and JSON to stdout.
 
+use std::fs;
 use std::io::Write as _;
 use std::path::Path;
 
@@ -259,4 +260,37 @@ pub(crate) fn columns(rows: &[Vec<String>]) -> String {
         res.push('\n');
     }
     res
+}
+
+/// Cuts the metrics of a resumed run back to its checkpoint at `env_steps`: the metrics are
+/// flushed before every checkpoint, so the file holds every line up to it, and may hold more
+/// (lines flushed after it, the last one perhaps half-written when the run was killed). The
+/// first line that is incomplete, not a record, or of a step after the checkpoint, and all
+/// after it, go; the resumed run writes them again, exactly (every record after a checkpoint
+/// has a later step: a chunk ends with its last step's updates).
+pub(crate) fn cut_metrics(path: &Path, env_steps: u64) -> anyhow::Result<()> {
+    let text = match fs::read(path) {
+        Ok(text) => text,
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(err) => return Err(err).with_context(|| format!("reading {}", path.display())),
+    };
+    let mut keep = 0;
+    for line in text.split_inclusive(|&b| b == b'\n') {
+        let step = line
+            .strip_suffix(b"\n")
+            .and_then(|line| serde_json::from_slice::<serde_json::Value>(line).ok())
+            .and_then(|record| record.get("step").and_then(serde_json::Value::as_u64));
+        match step {
+            Some(step) if step <= env_steps => keep += line.len(),
+            _ => break,
+        }
+    }
+    if keep < text.len() {
+        let file = fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .with_context(|| format!("opening {}", path.display()))?;
+        written(file.set_len(keep as u64), path)?;
+    }
+    Ok(())
 }
