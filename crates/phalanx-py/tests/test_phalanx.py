@@ -408,3 +408,44 @@ def test_the_ppo_example_runs_on_the_vector():
         check=True, capture_output=True, text=True, timeout=120,
     )
     assert "iteration 2: team return" in out.stdout
+
+
+STUDENT = """{"data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4,
+  "seed": 2, "expert": "swarm"}, "batch_size": 2, "updates": 5, "rounds": 1,
+  "round_episodes": 2, "round_updates": 4, "validation_maps": 1, "validation_max_side": 20}"""
+
+
+def read_plan_paths(path: pathlib.Path) -> list[list[tuple[int, int]]]:
+    """The paths of a plan file in the block layout `phalanx` writes."""
+    paths: list[list[tuple[int, int]]] = []
+    in_schedule, x = False, None
+    for line in path.read_text().splitlines():
+        if line == "schedule:":
+            in_schedule = True
+        elif in_schedule and line.startswith("  ") and line[2] != " " and line.endswith(":"):
+            paths.append([])
+        elif in_schedule and line.startswith("    - x: "):
+            x = int(line.split(":")[1])
+        elif in_schedule and line.startswith("      y: "):
+            paths[-1].append((x, int(line.split(":")[1])))
+    return paths
+
+
+def test_a_trained_imitation_student_plays_in_python_as_phalanx_solve(instance_file, tmp_path):
+    config = tmp_path / "cfg.json"
+    config.write_text(STUDENT)
+    student = tmp_path / "student"
+    train = ["train", "imitation", "--config", str(config), "--out", str(student)]
+    subprocess.run([phalanx_bin(), *train], check=True, capture_output=True)
+    policy = phalanx.load_policy("imitation", weights=student)
+    trajectory = play(policy, phalanx.parallel_env(instance=instance_file, task="meta"))
+    plan = tmp_path / "plan.yaml"
+    solve = ["solve", str(instance_file), "--planner", "imitation", "--weights", str(student)]
+    solve += ["--rollouts", "1", "--partial", "-o", str(plan)]
+    assert subprocess.run([phalanx_bin(), *solve], capture_output=True).returncode in (0, 1)
+    # The plan file trims each path's trailing waits: both are compared padded with them.
+    played = [[tuple(c) for c in p] for p in trajectory]
+    paths = read_plan_paths(plan)
+    horizon = max(map(len, paths + played))
+    pad = lambda ps: [p + [p[-1]] * (horizon - len(p)) for p in ps]  # noqa: E731
+    assert pad(played) == pad(paths)
