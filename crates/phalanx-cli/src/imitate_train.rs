@@ -17,11 +17,10 @@ use std::fs;
 use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::Context as _;
 use burn::tensor::Device;
-use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use phalanx_core::{Instance, PlanMetrics};
 use phalanx_env::{EnvConfig, Task};
 use phalanx_eval::Case;
@@ -129,7 +128,7 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
         if before == start {
             sink.record(metrics::IMITATION_SAMPLES, before, samples as f64)?;
         }
-        let bar = update_bar(total, before);
+        let bar = util::rate_bar(total, before, "updates");
         let mut last = Instant::now();
         while learner.counters().updates < end.min(stop) {
             let stats = learner.imitation_update().expect("the data has episodes");
@@ -265,24 +264,6 @@ fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-/// The progress bar over the run's updates.
-fn update_bar(total: u64, at: u64) -> ProgressBar {
-    let bar = ProgressBar::new(total);
-    let style = ProgressStyle::with_template(
-        "{elapsed_precise} [{bar:30}] {pos}/{len} updates, {ups} updates/s, eta {eta} {msg}",
-    )
-    .expect("a valid template")
-    .with_key("ups", |state: &ProgressState, out: &mut dyn std::fmt::Write| {
-        let _ = write!(out, "{:.1}", state.per_sec());
-    })
-    .progress_chars("=> ");
-    bar.set_style(style);
-    bar.set_position(at);
-    bar.reset_eta();
-    bar.enable_steady_tick(Duration::from_millis(500));
-    bar
 }
 
 /// Reads a settings file over the defaults.

@@ -18,11 +18,11 @@ use std::fs;
 use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::Context as _;
 use burn::tensor::Device;
-use indicatif::{ProgressBar, ProgressState, ProgressStyle};
+use indicatif::ProgressBar;
 use phalanx_env::{MarlEnv, MetaInputs};
 use phalanx_rl::{Collector, Learner, Multiples, TrainConfig, TrainTask, metrics};
 
@@ -293,19 +293,7 @@ fn train<E: MarlEnv + Send>(
         .with_context(|| format!("opening {}", metrics_path.display()))?;
 
     let start = learner.counters();
-    let bar = ProgressBar::new(config.steps);
-    let style = ProgressStyle::with_template(
-        "{elapsed_precise} [{bar:30}] {pos}/{len} steps, {sps} steps/s, eta {eta} {msg}",
-    )
-    .expect("a valid template")
-    .with_key("sps", |state: &ProgressState, out: &mut dyn std::fmt::Write| {
-        let _ = write!(out, "{:.0}", state.per_sec());
-    })
-    .progress_chars("=> ");
-    bar.set_style(style);
-    bar.set_position(start.env_steps.min(config.steps));
-    bar.reset_eta();
-    bar.enable_steady_tick(Duration::from_millis(500));
+    let bar = util::rate_bar(config.steps, start.env_steps.min(config.steps), "steps");
     let mut sink = Sink {
         out: BufWriter::new(file),
         err: None,

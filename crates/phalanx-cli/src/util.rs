@@ -294,3 +294,23 @@ pub(crate) fn cut_metrics(path: &Path, env_steps: u64) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// A progress bar of `len` `unit`s standing at `at`, with the rate per second and the ETA,
+/// ticking twice a second (the training runs' bar).
+pub(crate) fn rate_bar(len: u64, at: u64, unit: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    let template = format!(
+        "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}, {{rate}} {unit}/s, eta {{eta}} {{msg}}"
+    );
+    let style = indicatif::ProgressStyle::with_template(&template)
+        .expect("a valid template")
+        .with_key("rate", |state: &indicatif::ProgressState, out: &mut dyn std::fmt::Write| {
+            let _ = write!(out, "{:.1}", state.per_sec());
+        })
+        .progress_chars("=> ");
+    bar.set_style(style);
+    bar.set_position(at);
+    bar.reset_eta();
+    bar.enable_steady_tick(std::time::Duration::from_millis(500));
+    bar
+}

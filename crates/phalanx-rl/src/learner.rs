@@ -182,20 +182,20 @@ impl Learner {
     /// One gradient update on a batch sampled from one agent count's buffer; `None` while no
     /// buffer holds `learning_starts` episodes. The buffers that do take turns, update by update.
     pub fn update(&mut self) -> Option<UpdateStats> {
-        let ready: Vec<usize> = (0..self.replays.len())
-            .filter(|&idx| self.replays[idx].len() >= self.config.learning_starts.max(1))
-            .collect();
-        if ready.is_empty() {
-            return None;
-        }
-        let replay = &self.replays[ready[(self.counters.updates % ready.len() as u64) as usize]];
-        let batch = replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng);
+        let batch = self.sample()?;
         Some(self.update_on(&batch))
     }
 
     /// One behaviour-cloning update on a batch sampled as [`Learner::update`] samples (the
     /// buffers holding `learning_starts` episodes take turns); `None` while none does.
     pub fn imitation_update(&mut self) -> Option<ImitationStats> {
+        let batch = self.sample()?;
+        Some(self.imitation_update_on(&batch))
+    }
+
+    /// A batch from the buffers that hold `learning_starts` episodes, taking turns update by
+    /// update; `None` while none does.
+    fn sample(&mut self) -> Option<Batch> {
         let ready: Vec<usize> = (0..self.replays.len())
             .filter(|&idx| self.replays[idx].len() >= self.config.learning_starts.max(1))
             .collect();
@@ -203,8 +203,7 @@ impl Learner {
             return None;
         }
         let replay = &self.replays[ready[(self.counters.updates % ready.len() as u64) as usize]];
-        let batch = replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng);
-        Some(self.imitation_update_on(&batch))
+        Some(replay.sample(self.config.batch_size, self.config.sequence, &mut self.rng))
     }
 
     /// One behaviour-cloning update on `batch`, whose actions are the expert's labels
@@ -252,15 +251,8 @@ impl Learner {
             .count() as f32;
         let filled = tensor2(filled, [rows, len], &self.device); // [B*N, L]
         let loss = (chosen * filled).sum().neg().div_scalar(n_filled); // [1]
-        let value = to_vec(loss.clone().detach())[0];
-        let mut grads = GradientsParams::from_grads(loss.backward(), &self.online);
-        let grad_norm = clip_global_norm(&self.online, &mut grads, self.config.grad_clip_norm);
-        self.online = self.optim.step(self.config.lr, self.online.clone(), grads);
-        self.counters.updates += 1;
-        if self.counters.updates.is_multiple_of(self.config.target_update_interval.max(1)) {
-            self.target = self.online.valid();
-        }
-        ImitationStats { loss: value, accuracy: correct / n_filled, grad_norm }
+        let (loss, grad_norm) = self.descend(loss);
+        ImitationStats { loss, accuracy: correct / n_filled, grad_norm }
     }
 
     /// One gradient update on the given batch.
@@ -333,7 +325,15 @@ impl Learner {
         let q_mean = to_vec((q_taken.clone().detach() * filled.clone()).sum())[0] / n_filled;
         let td = (q_taken - targets) * filled; // [B, L]
         let loss = td.square().sum().div_scalar(n_filled); // [1]
-        let td_loss = to_vec(loss.clone().detach())[0];
+        let (td_loss, grad_norm) = self.descend(loss);
+        UpdateStats { td_loss, q_taken: q_mean, grad_norm }
+    }
+
+    /// One optimiser step down `loss`: gradients, global-norm clipping, Adam, the update
+    /// counted and the target network synchronised every `target_update_interval` updates.
+    /// Returns the loss's value and the gradient norm before clipping.
+    fn descend(&mut self, loss: Tensor<1>) -> (f32, f32) {
+        let value = to_vec(loss.clone().detach())[0];
         let mut grads = GradientsParams::from_grads(loss.backward(), &self.online);
         let grad_norm = clip_global_norm(&self.online, &mut grads, self.config.grad_clip_norm);
         self.online = self.optim.step(self.config.lr, self.online.clone(), grads);
@@ -341,7 +341,7 @@ impl Learner {
         if self.counters.updates.is_multiple_of(self.config.target_update_interval.max(1)) {
             self.target = self.online.valid();
         }
-        UpdateStats { td_loss, q_taken: q_mean, grad_norm }
+        (value, grad_norm)
     }
 }
 
