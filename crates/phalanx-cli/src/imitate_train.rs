@@ -104,7 +104,7 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let validation = validation_instances(&config)?;
     util::written(fs::create_dir_all(dir), dir)?;
     if !args.resume {
-        forget_rounds(dir)?;
+        forget_rounds(dir, &config)?;
     }
     let json = serde_json::to_string_pretty(&config).expect("the settings serialise") + "\n";
     util::written(phalanx_io::write_text(&saved, &json), &saved)?;
@@ -131,7 +131,9 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
         let bar = util::rate_bar(total, before, "updates");
         let mut last = Instant::now();
         while learner.counters().updates < end.min(stop) {
-            let stats = learner.imitation_update().expect("the data has episodes");
+            let stats = learner.imitation_update().with_context(|| {
+                format!("round {round}: no episode of the data has a step to learn from")
+            })?;
             let updates = learner.counters().updates;
             sink.record(metrics::IMITATION_LOSS, updates, f64::from(stats.loss))?;
             sink.record(metrics::IMITATION_ACCURACY, updates, f64::from(stats.accuracy))?;
@@ -248,17 +250,24 @@ fn save(learner: &Learner, dir: &Path, sink: &mut Metrics) -> anyhow::Result<()>
     util::written(learner.save(&checkpoint), &checkpoint)
 }
 
-/// Removes what a previous run in `dir` left of its rounds (a fresh run keeps only
-/// `data-0.bin`, which it reads again when its settings are this run's: the same settings
+/// Removes what a previous run in `dir` left of its rounds (a fresh run keeps only a
+/// `data-0.bin` made with its own data settings, which it reads again: the same settings
 /// make the same expert data).
-fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
+fn forget_rounds(dir: &Path, config: &ImitationConfig) -> anyhow::Result<()> {
+    let own_data = |path: &Path| {
+        fs::read(path)
+            .ok()
+            .and_then(|bytes| Dataset::from_bytes(&bytes).ok())
+            .is_some_and(|data| data.config == config.data)
+    };
     let entries = fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
     for entry in entries {
         let path = entry.with_context(|| format!("reading {}", dir.display()))?.path();
         let name = path.file_name().and_then(|it| it.to_str()).unwrap_or_default();
         let stale = name == "validation.jsonl"
             || name.strip_prefix("round-").is_some_and(|it| it.ends_with(".bin"))
-            || name.strip_prefix("data-").is_some_and(|it| it != "0.bin" && it.ends_with(".bin"));
+            || name.strip_prefix("data-").is_some_and(|it| it != "0.bin" && it.ends_with(".bin"))
+            || (name == "data-0.bin" && !own_data(&path));
         if stale {
             util::written(fs::remove_file(&path), &path)?;
         }
@@ -304,7 +313,7 @@ fn round_data(
         return Ok(data);
     }
     anyhow::ensure!(
-        learner.counters().updates <= config.round_end(round.wrapping_sub(1)) || round == 0,
+        round == 0 || learner.counters().updates <= config.round_end(round - 1),
         "{}: missing, and the checkpoint is past the round that made it",
         path.display()
     );
@@ -388,11 +397,7 @@ fn append_validation(dir: &Path, figures: &Validation) -> anyhow::Result<()> {
     kept.push(figures.clone());
     let text: String = kept
         .iter()
-        .map(|it| {
-            serde_json::to_string(it).expect("figures serialise")
-                + "
-"
-        })
+        .map(|it| serde_json::to_string(it).expect("figures serialise") + "\n")
         .collect();
     util::written(phalanx_io::write_text(&path, &text), &path)
 }

@@ -1,7 +1,7 @@
 //! `phalanx run`: a decentralised run of the path-finding policy, of the hierarchy
-//! (`--policy hrl`) or of the imitation student (`--policy imitation`). The world and every agent exchange only the paper's messages
-//! (observations, actions, the end, and for the hierarchy the choices and the formation
-//! frames; docs/runtime.md): as threads of one process over the in-process bus of
+//! (`--policy hrl`) or of the imitation student (`--policy imitation`). The world and every
+//! agent exchange only the paper's messages (observations, actions, the end, and for the
+//! hierarchy the choices and the formation frames; docs/runtime.md): as threads of one process over the in-process bus of
 //! phalanx-runtime, or with `--processes` as processes of their own (`phalanx world` and one
 //! `phalanx agent` each) over Zenoh on loopback. The trajectory is scored by the one validator
 //! and printed as `phalanx solve` prints a plan; either way it is the plan of `phalanx solve

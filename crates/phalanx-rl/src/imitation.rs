@@ -15,6 +15,9 @@
 //!   `[4, F, F]` channels, goal vector and mask), the message of the expert's actions of the
 //!   agents ranked before it, and the expert's action for it as the target.
 //! - [`file`] is the on-disk format (a versioned, checksummed header and episodes).
+//! - [`generate_with`] makes a DAgger round's data: the student moves the team, the expert
+//!   labels every state it reaches; [`learn`] trains the student on the data (cloning, then
+//!   DAgger rounds).
 
 use phalanx_core::{Action, Cell, Instance};
 use phalanx_env::{Env, EnvConfig, EnvError, LeaderRule, ObsBuffers, PoolConfig, Task, TrainPool};
@@ -23,9 +26,9 @@ use phalanx_plan::swarm::SubSolver;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 use crate::policy::Policy;
-use serde::{Deserialize, Serialize};
 
 pub mod file;
 pub mod learn;
