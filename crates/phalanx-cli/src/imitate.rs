@@ -15,7 +15,6 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_core::{Action, PlanMetrics, validate};
 use phalanx_env::{Env, EnvConfig, PoolConfig, Task};
 use phalanx_eval::Case;
@@ -128,18 +127,6 @@ fn parse_expert(text: &str) -> Result<ExpertChoice, String> {
     }
 }
 
-pub(crate) fn bar(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template(&format!(
-            "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {what}, eta {{eta}}"
-        ))
-        .expect("a valid template")
-        .progress_chars("=> "),
-    );
-    bar
-}
-
 /// One row's figures.
 #[derive(Default)]
 struct RowFigures {
@@ -169,7 +156,7 @@ fn expert(args: &ExpertArgs) -> anyhow::Result<ExitCode> {
     );
     let config = args.expert.config(args.node_limit);
     let env_config = EnvConfig { task: Task::Meta, ..EnvConfig::default() };
-    let bar = bar(cases.len() as u64 * args.maps, "instances");
+    let bar = util::bar(cases.len() as u64 * args.maps, "instances");
     let mut rows = vec![vec![
         "row".to_owned(),
         "success".to_owned(),
@@ -259,7 +246,7 @@ fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
         node_limit: args.node_limit,
         ..DataConfig::default()
     };
-    let bar = bar(args.episodes, "episodes");
+    let bar = util::bar(args.episodes, "episodes");
     let started = Instant::now();
     let (data, stats) = imitation::generate(&config, &|n| bar.inc(n))?;
     let seconds = started.elapsed().as_secs_f64();
@@ -309,7 +296,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<ExitCode> {
     let data =
         Dataset::from_bytes(&bytes).with_context(|| format!("reading {}", path.display()))?;
     let config = &data.config;
-    let bar = bar(data.episodes.len() as u64, "episodes");
+    let bar = util::bar(data.episodes.len() as u64, "episodes");
     let started = Instant::now();
     let mut labels = [0u64; Action::COUNT];
     let (mut samples, mut followers, mut copies) = (0u64, 0u64, 0u64);

@@ -318,7 +318,7 @@ fn round_data(
         path.display()
     );
     let what = if round == 0 { "expert episodes" } else { "student episodes" };
-    let bar = crate::imitate::bar(expected.episodes, what);
+    let bar = util::bar(expected.episodes, what);
     let student: Option<Policy> = (round > 0).then(|| learner.policy());
     let (data, _) = imitation::generate_with(&expected, student.as_ref(), &|n| bar.inc(n))
         .with_context(|| format!("the data of round {round}"))?;

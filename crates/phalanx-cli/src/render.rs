@@ -137,8 +137,19 @@ pub(crate) fn write(
     options: &Options,
     step: Option<usize>,
 ) -> anyhow::Result<()> {
-    let bytes = phalanx_render::render(scene, options, format, step)
-        .with_context(|| format!("drawing {}", path.display()))?;
+    let bytes = if (format, step) == (Format::Gif, None) {
+        // An animation draws its frames one by one: a bar shows them (hidden off a terminal).
+        let bar = util::bar(0, "frames");
+        let drawn = phalanx_render::gif_with_progress(scene, options, &mut |done, frames| {
+            bar.set_length(frames as u64);
+            bar.set_position(done as u64);
+        });
+        bar.finish_and_clear();
+        drawn
+    } else {
+        phalanx_render::render(scene, options, format, step)
+    }
+    .with_context(|| format!("drawing {}", path.display()))?;
     util::written(phalanx_io::write_bytes(path, &bytes), path)
 }
 

@@ -314,3 +314,16 @@ pub(crate) fn rate_bar(len: u64, at: u64, unit: &str) -> indicatif::ProgressBar 
     bar.enable_steady_tick(std::time::Duration::from_millis(500));
     bar
 }
+
+/// A progress bar of `len` `what` with the ETA (hidden off a terminal).
+pub(crate) fn bar(len: u64, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(&format!(
+            "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {what}, eta {{eta}}"
+        ))
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    bar
+}

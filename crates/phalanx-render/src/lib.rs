@@ -194,7 +194,7 @@ pub fn render(
         (Format::Gif, None) => gif(scene, options),
         (Format::Gif, Some(step)) => {
             let layout = still_layout(scene, options, step)?;
-            raster::gif(scene, &layout, options, Some(step))
+            raster::gif(scene, &layout, options, Some(step), &mut |_, _| {})
         }
     }
 }
@@ -254,9 +254,22 @@ pub fn rgba(
 /// # Errors
 /// See [`RenderError`].
 pub fn gif(scene: &Scene<'_>, options: &Options) -> Result<Vec<u8>, RenderError> {
+    gif_with_progress(scene, options, &mut |_, _| {})
+}
+
+/// [`gif`], calling `progress(done, frames)` after each frame is drawn (a long animation
+/// takes seconds a frame on a large map).
+///
+/// # Errors
+/// See [`RenderError`].
+pub fn gif_with_progress(
+    scene: &Scene<'_>,
+    options: &Options,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<u8>, RenderError> {
     let layout = Layout::of(scene, options, options.max_frames.min(GIF_MAX_FRAMES))?;
     layout.check_work()?;
-    raster::gif(scene, &layout, options, None)
+    raster::gif(scene, &layout, options, None, progress)
 }
 
 /// A layout whose frames are every step, so that frame `step` is step `step`.

@@ -89,6 +89,7 @@ pub(crate) fn gif(
     layout: &Layout,
     options: &Options,
     only: Option<usize>,
+    progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<u8>, RenderError> {
     let (w, h) = svg::size(layout);
     let frames: Vec<usize> = match only {
@@ -97,7 +98,9 @@ pub(crate) fn gif(
     };
     let delay = (100.0 / options.fps).round().clamp(1.0, 65535.0) as u16;
     encode_gif(w, h, frames.len(), delay, options.hold_s, |k| {
-        rgba(scene, layout, options, frames[k], Edges::Crisp).map(|(_, _, data)| data)
+        let data = rgba(scene, layout, options, frames[k], Edges::Crisp).map(|(_, _, data)| data);
+        progress(k + 1, frames.len());
+        data
     })
 }
 

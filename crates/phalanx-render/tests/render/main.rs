@@ -104,6 +104,17 @@ fn a_gif_has_a_frame_per_step_and_loops() {
     // One image descriptor per frame (0x2C after a graphic control extension's terminator).
     let frames = gif.windows(3).filter(|w| w[0] == 0x00 && w[1] == 0x2C && w[2] == 0x00).count();
     assert_eq!(frames, plan.n_steps());
+    // Drawn with progress: one call per frame, in order, the same picture.
+    let mut calls = Vec::new();
+    let with = phalanx_render::gif_with_progress(
+        &scene(&inst, &plan, None),
+        &Options::default(),
+        &mut |done, total| calls.push((done, total)),
+    )
+    .unwrap();
+    assert_eq!(with, gif);
+    let n = plan.n_steps();
+    assert_eq!(calls, (1..=n).map(|k| (k, n)).collect::<Vec<_>>());
 }
 
 #[test]
