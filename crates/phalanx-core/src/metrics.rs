@@ -85,17 +85,17 @@ impl Stall {
     /// How the plan ends when it does not reach `goals`: standing, oscillating, or `None`
     /// (the goals reached, the team still moving on, or a plan shorter than the window).
     pub fn of(plan: &Plan, goals: &[Cell]) -> Option<Stall> {
-        let steps: Vec<&[Cell]> = plan.steps().collect();
-        let last = *steps.last()?;
-        if last == goals || steps.len() <= STALL_WINDOW {
+        let n = plan.n_steps();
+        if n <= STALL_WINDOW || plan.at(n - 1) == goals {
             return None;
         }
-        let window = &steps[steps.len() - STALL_WINDOW - 1..];
-        if window.iter().all(|&step| step == last) {
+        let last = plan.at(n - 1);
+        let window = (n - STALL_WINDOW - 1..n).map(|t| plan.at(t));
+        if window.clone().all(|step| step == last) {
             return Some(Stall::Standing);
         }
         let mut seen: Vec<&[Cell]> = Vec::new();
-        for &step in window {
+        for step in window {
             if !seen.contains(&step) {
                 seen.push(step);
                 if seen.len() > 4 {

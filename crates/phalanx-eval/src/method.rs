@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use phalanx_core::{Instance, Plan, Stall};
+use phalanx_core::{Instance, Plan};
 use phalanx_env::{EnvConfig, EnvError, Task};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, run_planner};
@@ -102,7 +102,7 @@ impl Method {
         let result = if best.success { Ok(&best.plan) } else { Err(Outcome::StepLimit) };
         let mut summary = SolveSummary::of(instance, &self.name, result, runtime_s);
         summary.decisions = Some(best.decisions);
-        summary.stall = Stall::of(&best.plan, instance.goals()).map(|it| it.name().to_owned());
+        summary.stall = best.stall.map(|it| it.name().to_owned());
         Ok(Solved { summary, plan: Some(best.plan), choices: best.choices })
     }
 

@@ -207,6 +207,9 @@ pub fn learner_episode(
         return Ok(None);
     }
     let index = episode.index;
+    if rule != env.task.leader_rule() {
+        return Err(DataError::Replay { episode: index, step: 0, what: "acting order" });
+    }
     let n = episode.instance.n_agents();
     let mut sim =
         TaskEnv::new(env.task, env.clone(), n).map_err(|err| DataError::Env(index, err))?;
@@ -221,7 +224,7 @@ pub fn learner_episode(
             return Err(DataError::Replay { episode: index, step: t, what: "positions" });
         }
         let order = obs.order.iter().map(|&agent| agent as u16);
-        if rule != env.task.leader_rule() || !order.eq(step.order.iter().copied()) {
+        if !order.eq(step.order.iter().copied()) {
             return Err(DataError::Replay { episode: index, step: t, what: "acting order" });
         }
         for agent in 0..n {
