@@ -78,21 +78,11 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     config.check().map_err(|err| anyhow::anyhow!("imitation settings: {err}"))?;
     let device = Device::flex().autodiff();
     let checkpoint = dir.join("checkpoint");
-    let mut learner = if args.resume {
-        Learner::load(&checkpoint, &device).context("resuming")?
-    } else {
-        let mut learner = Learner::new(
-            config.net.clone(),
-            config.learner_config(),
-            &config.data.agents,
-            args.seed,
-            &device,
-        );
-        if let Some(path) = &config.init_from {
-            learner.init_from(path).context("warm start (init_from)")?;
-        }
-        learner
+    let fresh = || {
+        let (net, counts) = (config.net.clone(), &config.data.agents);
+        Learner::new(net, config.learner_config(), counts, args.seed, &device)
     };
+    let mut learner = util::learner(args.resume, &checkpoint, fresh, config.init_from.as_deref())?;
     anyhow::ensure!(
         learner.net_config() == &config.net,
         "{}: the checkpoint's network is not the one of the settings",
@@ -104,7 +94,7 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let validation = validation_instances(&config)?;
     util::written(fs::create_dir_all(dir), dir)?;
     if !args.resume {
-        forget_rounds(dir, &config)?;
+        forget_rounds(dir)?;
     }
     let json = serde_json::to_string_pretty(&config).expect("the settings serialise") + "\n";
     util::written(phalanx_io::write_text(&saved, &json), &saved)?;
@@ -117,7 +107,7 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let mut best = read_best(dir)?;
     for round in 0..=config.rounds {
         let end = config.round_end(round);
-        let data = round_data(&config, dir, round, &learner)?;
+        let data = round_data(&config, dir, round, &learner, !args.resume)?;
         samples += add_to_learner(&mut learner, &data)
             .with_context(|| format!("the data of round {round}"))?;
         let before = learner.counters().updates;
@@ -250,24 +240,17 @@ fn save(learner: &Learner, dir: &Path, sink: &mut Metrics) -> anyhow::Result<()>
     util::written(learner.save(&checkpoint), &checkpoint)
 }
 
-/// Removes what a previous run in `dir` left of its rounds (a fresh run keeps only a
-/// `data-0.bin` made with its own data settings, which it reads again: the same settings
-/// make the same expert data).
-fn forget_rounds(dir: &Path, config: &ImitationConfig) -> anyhow::Result<()> {
-    let own_data = |path: &Path| {
-        fs::read(path)
-            .ok()
-            .and_then(|bytes| Dataset::from_bytes(&bytes).ok())
-            .is_some_and(|data| data.config == config.data)
-    };
+/// Removes what a previous run in `dir` left of its rounds (a fresh run keeps only
+/// `data-0.bin`, which [`round_data`] reads again when it was made with this run's data
+/// settings: the same settings make the same expert data).
+fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
     let entries = fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
     for entry in entries {
         let path = entry.with_context(|| format!("reading {}", dir.display()))?.path();
         let name = path.file_name().and_then(|it| it.to_str()).unwrap_or_default();
         let stale = name == "validation.jsonl"
             || name.strip_prefix("round-").is_some_and(|it| it.ends_with(".bin"))
-            || name.strip_prefix("data-").is_some_and(|it| it != "0.bin" && it.ends_with(".bin"))
-            || (name == "data-0.bin" && !own_data(&path));
+            || name.strip_prefix("data-").is_some_and(|it| it != "0.bin" && it.ends_with(".bin"));
         if stale {
             util::written(fs::remove_file(&path), &path)?;
         }
@@ -283,14 +266,16 @@ fn read_config(path: &Path) -> anyhow::Result<ImitationConfig> {
         .map_err(|err| anyhow::anyhow!("parsing config {}: {err}", path.display()))
 }
 
-/// Round `round`'s data: read from `DIR/data-K.bin` when it is there (and was made with
-/// this run's settings), else generated (round 0: the expert's rollouts; round K: the
-/// student's, labelled by the expert) and written atomically.
+/// Round `round`'s data: read from `DIR/data-K.bin` when it is there and was made with
+/// this run's settings, else generated (round 0: the expert's rollouts; round K: the
+/// student's, labelled by the expert) and written atomically. A file of other settings, or
+/// one that cannot be read, is refused in a resumed run and replaced in a `fresh` one.
 fn round_data(
     config: &ImitationConfig,
     dir: &Path,
     round: u32,
     learner: &Learner,
+    fresh: bool,
 ) -> anyhow::Result<Dataset> {
     let path = dir.join(format!("data-{round}.bin"));
     let expected = if round == 0 {
@@ -302,15 +287,19 @@ fn round_data(
         config.round_data(round, network)
     };
     if path.exists() {
-        let bytes = fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-        let data =
-            Dataset::from_bytes(&bytes).with_context(|| format!("reading {}", path.display()))?;
-        anyhow::ensure!(
-            data.config == expected,
-            "{}: made with other settings than this run's round {round}",
-            path.display()
-        );
-        return Ok(data);
+        let read = fs::read(&path)
+            .map_err(anyhow::Error::from)
+            .and_then(|bytes| Dataset::from_bytes(&bytes).map_err(anyhow::Error::from));
+        match read {
+            Ok(data) if data.config == expected => return Ok(data),
+            // A fresh run makes its own data in place of another run's or a damaged file.
+            _ if fresh => {}
+            Ok(_) => anyhow::bail!(
+                "{}: made with other settings than this run's round {round}",
+                path.display()
+            ),
+            Err(err) => return Err(err.context(format!("reading {}", path.display()))),
+        }
     }
     anyhow::ensure!(
         round == 0 || learner.counters().updates <= config.round_end(round - 1),

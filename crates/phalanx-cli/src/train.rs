@@ -189,21 +189,11 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
     config.check().map_err(|err| anyhow::anyhow!("{err}"))?;
     let device = Device::flex().autodiff();
     let checkpoint = dir.join("checkpoint");
-    let mut learner = if cmd.resume {
-        Learner::load(&checkpoint, &device).context("resuming")?
-    } else {
-        let mut learner = Learner::new(
-            config.net.clone(),
-            config.learner.clone(),
-            &config.agent_counts,
-            cmd.seed,
-            &device,
-        );
-        if let Some(path) = &config.init_from {
-            learner.init_from(path).context("warm start (init_from)")?;
-        }
-        learner
+    let fresh = || {
+        let (net, counts) = (config.net.clone(), &config.agent_counts);
+        Learner::new(net, config.learner.clone(), counts, cmd.seed, &device)
     };
+    let mut learner = util::learner(cmd.resume, &checkpoint, fresh, config.init_from.as_deref())?;
     if learner.agent_counts() != config.agent_counts {
         util::warn(&format!(
             "the checkpoint trains teams of {:?}; config agent_counts {:?} ignored",

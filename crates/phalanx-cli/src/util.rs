@@ -327,3 +327,22 @@ pub(crate) fn bar(len: u64, what: &str) -> indicatif::ProgressBar {
     );
     bar
 }
+
+/// The learner of a training run: restored from `checkpoint` when `resume`, else `fresh()`
+/// warm-started from `init_from` when given (a checkpoint or policy file).
+pub(crate) fn learner(
+    resume: bool,
+    checkpoint: &Path,
+    fresh: impl FnOnce() -> phalanx_rl::Learner,
+    init_from: Option<&Path>,
+) -> anyhow::Result<phalanx_rl::Learner> {
+    if resume {
+        let device = burn::tensor::Device::flex().autodiff();
+        return phalanx_rl::Learner::load(checkpoint, &device).context("resuming");
+    }
+    let mut learner = fresh();
+    if let Some(path) = init_from {
+        learner.init_from(path).context("warm start (init_from)")?;
+    }
+    Ok(learner)
+}
