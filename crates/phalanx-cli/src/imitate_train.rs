@@ -22,7 +22,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use burn::tensor::Device;
 use phalanx_core::{Instance, PlanMetrics};
-use phalanx_env::{EnvConfig, Task};
+use phalanx_env::Task;
 use phalanx_eval::Case;
 use phalanx_rl::imitation::learn::{ImitationConfig, add_to_learner};
 use phalanx_rl::imitation::{self, Dataset};
@@ -148,7 +148,7 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
         // The end of a round: its policy, its validation, the best so far as policy.bin.
         let snapshot = dir.join(format!("round-{round}.bin"));
         util::written(learner.save_policy(&snapshot), &snapshot)?;
-        let figures = validate(&learner.policy(), &validation, &config, round, updates)?;
+        let figures = validate(&learner.policy(), &validation, round, updates)?;
         sink.record(metrics::VAL_SUCCESS, updates, figures.success)?;
         sink.record(metrics::VAL_FORMATION_LOSS, updates, figures.formation_loss)?;
         append_validation(dir, &figures)?;
@@ -336,11 +336,10 @@ fn validation_instances(config: &ImitationConfig) -> anyhow::Result<Vec<(String,
 fn validate(
     policy: &Policy,
     rows: &[(String, Vec<Instance>)],
-    config: &ImitationConfig,
     round: u32,
     updates: u64,
 ) -> anyhow::Result<Validation> {
-    let env = EnvConfig { fov: config.data.env.fov, ..EnvConfig::default() };
+    let env = policy.env_config(Task::Meta);
     let mut figures = Vec::new();
     for (label, instances) in rows {
         let mut policy = policy.clone();

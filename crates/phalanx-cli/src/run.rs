@@ -97,6 +97,15 @@ impl Team {
         }
     }
 
+    /// Whether its policy reads the place vector (`EnvConfig::place_vector`: a student of
+    /// the planners).
+    pub(crate) fn place_vector(&self) -> bool {
+        match self {
+            Team::Flat(policy) => policy.env_config(Task::Meta).place_vector,
+            Team::Hierarchy(_) => false,
+        }
+    }
+
     /// Runs agent `id` over `transport` until the episode ends (see
     /// [`phalanx_runtime::run_agent`]).
     pub(crate) fn run_agent(
@@ -200,20 +209,25 @@ pub(crate) fn policy_for(weights: Option<&Path>, name: &str, n: usize) -> anyhow
     Ok(policy)
 }
 
-/// The world of `instance` for a team of `policy` of field of view `fov`, with the step
-/// limit of docs/spec.md §4 (three times the map side).
+/// The world of `instance` for a team of `policy` of field of view `fov` (the student's
+/// observations with the place vector when `place_vector`), with the step limit of
+/// docs/spec.md §4 (three times the map side).
 pub(crate) fn world_for(
     named: &NamedInstance,
     path: &Path,
     policy: TeamPolicy,
     fov: u32,
+    place_vector: bool,
 ) -> anyhow::Result<World> {
     let instance = &named.instance;
     let step_limit = Some(3 * instance.grid().side());
     let config = EnvConfig { fov, step_limit, ..EnvConfig::default() };
     match policy {
         TeamPolicy::Pathfinding => World::new(instance, config, 0),
-        TeamPolicy::Imitation => World::new(instance, EnvConfig { task: Task::Meta, ..config }, 0),
+        TeamPolicy::Imitation => {
+            let config = EnvConfig { task: Task::Meta, place_vector, ..config };
+            World::new(instance, config, 0)
+        }
         TeamPolicy::Hrl => World::hierarchy(instance, config, 0),
     }
     .with_context(|| format!("{}: the world refuses the instance", path.display()))
@@ -283,7 +297,8 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
     if cmd.processes {
         return processes(&cmd, n, &team);
     }
-    let mut world = world_for(&named, &cmd.instance, cmd.team.policy, team.fov())?;
+    let mut world =
+        world_for(&named, &cmd.instance, cmd.team.policy, team.fov(), team.place_vector())?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();

@@ -85,6 +85,17 @@ pub struct EnvConfig {
     /// when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub idle_cost: f64,
+    /// Whether an agent's vector holds, after its goal vector, the vector towards its
+    /// *place*: its cell of the goal layout placed on the agent in front (the path-finding
+    /// leader), as [`crate::Env::write_place_vector`] writes it (`docs/observation.md`); the
+    /// vector is then 6 long. The planners' student reads it (`docs/imitation.md`). Default
+    /// false. Not written when false.
+    #[serde(skip_serializing_if = "is_false")]
+    pub place_vector: bool,
+}
+
+fn is_false(x: &bool) -> bool {
+    !*x
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -99,6 +110,7 @@ impl Default for EnvConfig {
             formation_weight: 1.0,
             step_limit: None,
             idle_cost: 0.0,
+            place_vector: false,
         }
     }
 }

@@ -297,10 +297,12 @@ impl Env {
     }
 
     /// Sizes of one agent's observation: the four channels of the field of view, the goal
-    /// vector and the five actions' mask.
+    /// vector (and the place vector with [`EnvConfig::place_vector`]) and the five actions'
+    /// mask.
     #[inline]
     pub fn obs_shape(&self) -> ObsShape {
-        ObsShape { channels: CHANNELS, fov: self.fov, env_vec: VECTOR_LEN, n_actions: N_ACTIONS }
+        let env_vec = if self.config.place_vector { 2 * VECTOR_LEN } else { VECTOR_LEN };
+        ObsShape { channels: CHANNELS, fov: self.fov, env_vec, n_actions: N_ACTIONS }
     }
 
     /// Starts a new episode on `instance`: the agents stand on their starts. Buffers are
@@ -721,8 +723,9 @@ impl Env {
         n_cancelled
     }
 
-    /// Writes every agent's observation (channels, goal vector and mask of the task's
-    /// clipping) into `out`; the acting order is [`Env::begin_turns`]'s.
+    /// Writes every agent's observation (channels, goal vector, the place vector with
+    /// [`EnvConfig::place_vector`], and mask of the task's clipping) into `out`; the acting
+    /// order is [`Env::begin_turns`]'s.
     ///
     /// # Panics
     /// If the buffers do not have this episode's agent count and [`Env::obs_shape`].
@@ -738,18 +741,30 @@ impl Env {
         assert_eq!(out.n_agents, self.pos.len(), "buffers of another agent count");
         assert_eq!(out.shape, self.obs_shape(), "buffers of another shape");
         let shape = out.shape;
+        let front = self.config.place_vector.then(|| self.front());
         for (i, ((grid, vector), mask)) in out
             .grid
             .chunks_exact_mut(shape.grid_len())
-            .zip(out.vec.chunks_exact_mut(VECTOR_LEN))
+            .zip(out.vec.chunks_exact_mut(shape.env_vec))
             .zip(out.action_mask.chunks_exact_mut(N_ACTIONS))
             .enumerate()
         {
             self.prefetch_view(i + Env::PREFETCH_AHEAD);
             self.write_grid(i, grid);
-            self.write_vector(i, vector);
+            let (goal, place) = vector.split_at_mut(VECTOR_LEN);
+            self.write_vector(i, goal);
+            if let Some(front) = front {
+                self.write_place_vector(i, front, place);
+            }
             self.write_mask(i, clip, mask);
         }
+    }
+
+    /// The agent in front: the first of the path-finding acting order (the smallest BFS
+    /// distance to its goal, ties by agent index), as [`Env::begin_turns`] ranks it.
+    pub fn front(&self) -> usize {
+        let keyed = self.own_dist.iter().enumerate().map(|(i, &d)| (d, i));
+        keyed.min().map_or(0, |(_, i)| i)
     }
 
     /// Asks the processor to start loading the rows agent `agent`'s channels will read (its

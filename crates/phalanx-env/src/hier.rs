@@ -132,7 +132,9 @@ impl HierEnv {
     /// If `n_agents` is 0.
     pub fn new(config: EnvConfig, n_agents: usize, inputs: MetaInputs) -> Result<Self, EnvError> {
         assert!(n_agents > 0, "an environment needs agents");
-        let env = Env::new(EnvConfig { task: Task::Meta, ..config })?;
+        // The low-level observations are the path-finding and formation policies' own: the
+        // place vector is the meta observation's ([`MetaInputs::place`]).
+        let env = Env::new(EnvConfig { task: Task::Meta, place_vector: false, ..config })?;
         let low = env.obs_shape();
         Ok(HierEnv {
             env,

@@ -14,7 +14,6 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::marl::{MarlEnv, ObsBuffers, ObsShape, StepOut};
-use crate::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
 use crate::{Env, EnvConfig, EnvError, LeaderRule, PoolConfig, Task, TrainPool};
 
 /// Formation placements tried on fresh maps before a reset gives up (each try already makes
@@ -83,12 +82,7 @@ impl TaskEnv {
 
     /// Sizes of one agent's observation.
     pub fn obs_shape(&self) -> ObsShape {
-        ObsShape {
-            channels: CHANNELS,
-            fov: self.env.config().fov as usize,
-            env_vec: VECTOR_LEN,
-            n_actions: N_ACTIONS,
-        }
+        self.env.obs_shape()
     }
 
     /// Writes every agent's channels, goal vector and mask, then the leader order.

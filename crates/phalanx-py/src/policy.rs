@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray4, PyUntypedArrayMethods};
-use phalanx_env::obs::{N_ACTIONS, VECTOR_LEN};
+use phalanx_env::obs::N_ACTIONS;
 use phalanx_env::{EnvConfig, ObsBuffers, ObsShape};
 use phalanx_rl::{Episodes, Hierarchy, Policy, models};
 use pyo3::prelude::*;
@@ -52,6 +52,13 @@ impl PyPolicy {
         self.policy.config().fov
     }
 
+    /// The length of the vector the network reads: 3 (the goal vector), or 6 (the goal and
+    /// place vectors: the planners' student).
+    #[getter]
+    fn vector_len(&self) -> usize {
+        self.policy.config().env_vec
+    }
+
     /// Forgets the recurrent state: call at the start of every episode.
     fn reset(&mut self) {
         self.policy.reset();
@@ -59,7 +66,7 @@ impl PyPolicy {
     }
 
     /// Every agent's action for one step, greedily among the allowed ones (ε-greedy with
-    /// `epsilon`, drawn from `seed`'s stream): `grid [N, 4, F, F]`, `vector [N, 3]`,
+    /// `epsilon`, drawn from `seed`'s stream): `grid [N, 4, F, F]`, `vector [N, 3]` (`[N, 6]`: `vector_len`),
     /// `action_mask [N, 5]` and `rank [N]` (each agent's place in the leader order); agents
     /// choose in that order, each seeing the actions before it as its message.
     #[pyo3(signature = (grid, vector, action_mask, rank, epsilon = 0.0))]
@@ -82,7 +89,7 @@ impl PyPolicy {
             }
         };
         expect("grid", grid.shape(), &[n, c, f, f])?;
-        expect("vector", vector.shape(), &[n, VECTOR_LEN])?;
+        expect("vector", vector.shape(), &[n, config.env_vec])?;
         expect("action_mask", action_mask.shape(), &[n, N_ACTIONS])?;
         expect("rank", rank.shape(), &[n])?;
         if n == 0 || n > config.n_agents_max {
@@ -97,7 +104,7 @@ impl PyPolicy {
                 self.obs.as_ref().map_or(0, |obs| obs.n_agents)
             )));
         }
-        let shape = ObsShape { channels: c, fov: f, env_vec: VECTOR_LEN, n_actions: N_ACTIONS };
+        let shape = ObsShape { channels: c, fov: f, env_vec: config.env_vec, n_actions: N_ACTIONS };
         let obs = self.obs.get_or_insert_with(|| ObsBuffers::new(n, shape));
         obs.grid.copy_from_slice(grid.as_slice().map_err(|_| bad("grid is not contiguous"))?);
         obs.vec.copy_from_slice(vector.as_slice().map_err(|_| bad("vector is not contiguous"))?);

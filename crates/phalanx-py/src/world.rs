@@ -7,7 +7,8 @@
 //!
 //! Arrays, allocated once (the agent count of an environment never changes):
 //! `grid [N, 4, F, F]` f32 (obstacles, agents, cost, formation), `vector [N, 3]` f32 (the goal
-//! vector), `action_mask [N, 5]` i8, `message [N, N, 5]` f32 (row `i` is agent `i`'s message),
+//! vector; `[N, 6]` with the place vector after it, `place_vector=True` on the meta task),
+//! `action_mask [N, 5]` i8, `message [N, N, 5]` f32 (row `i` is agent `i`'s message),
 //! `rank [N]` i64 (each agent's place in this step's leader order), `rewards [N]` f32.
 
 use std::path::PathBuf;
@@ -162,8 +163,9 @@ impl<'a> ObsRows<'a> {
     }
 }
 
-/// Writes every agent's observation into `out` (channels, goal vector, the task's mask), then
-/// starts the step's turns by the task's leader rule and writes each agent's rank.
+/// Writes every agent's observation into `out` (channels, goal vector, the place vector when
+/// the environment writes it, the task's mask), then starts the step's turns by the task's
+/// leader rule and writes each agent's rank.
 pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>) {
     let clip = task.clip();
     let grid_len = out.grid.len() / out.rank.len().max(1);
@@ -171,8 +173,14 @@ pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>) {
         env.prefetch_view(agent + Env::PREFETCH_AHEAD);
         env.write_grid(agent, out);
     }
-    for (agent, out) in out.vector.chunks_exact_mut(VECTOR_LEN).enumerate() {
-        env.write_vector(agent, out);
+    let width = env.obs_shape().env_vec;
+    let front = env.config().place_vector.then(|| env.front());
+    for (agent, out) in out.vector.chunks_exact_mut(width).enumerate() {
+        let (goal, place) = out.split_at_mut(VECTOR_LEN);
+        env.write_vector(agent, goal);
+        if let Some(front) = front {
+            env.write_place_vector(agent, front, place);
+        }
     }
     let mut mask = [true; N_ACTIONS];
     for (agent, out) in out.mask.chunks_exact_mut(N_ACTIONS).enumerate() {
@@ -210,7 +218,7 @@ pub(crate) struct World {
     /// `[N, 4, F, F]`.
     #[pyo3(get)]
     grid: Py<PyArray4<f32>>,
-    /// `[N, 3]`.
+    /// `[N, 3]`, or `[N, 6]` with the place vector.
     #[pyo3(get)]
     vector: Py<PyArray2<f32>>,
     /// `[N, 5]`.
@@ -251,10 +259,11 @@ fn fill<T: numpy::Element, D: numpy::ndarray::Dimension>(
 impl World {
     /// An environment of `task` on generated `size × size` maps (obstacle `density`, teams of
     /// `agents`) or on the instance file `instance`, with a `fov × fov` view; the meta task
-    /// weighs `L_f` by `formation_weight`.
+    /// weighs `L_f` by `formation_weight` and, with `place_vector`, ends each agent's vector
+    /// with the vector towards its place (what the planners' student reads).
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments")]
-    #[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None))]
+    #[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None, place_vector = false))]
     fn new(
         py: Python<'_>,
         size: u32,
@@ -264,11 +273,19 @@ impl World {
         fov: u32,
         formation_weight: f64,
         instance: Option<PathBuf>,
+        place_vector: bool,
     ) -> PyResult<World> {
-        let spec = Spec::new(size, density, agents, task, fov, formation_weight, instance)?;
+        let mut spec = Spec::new(size, density, agents, task, fov, formation_weight, instance)?;
+        if place_vector && spec.task != Task::Meta {
+            return Err(bad(format!(
+                "place_vector: the place vector is the meta task's, not {task:?}'s"
+            )));
+        }
+        spec.env_config.place_vector = place_vector;
         let env = Env::new(spec.env_config.clone()).map_err(|err| error(&err))?;
         let n = spec.n_agents;
         let f = fov as usize;
+        let vector_len = env.obs_shape().env_vec;
         let names: Vec<_> =
             (0..n).map(|i| PyString::new(py, &format!("agent_{i}")).unbind()).collect();
         let flag_dict = |value: bool| -> PyResult<Py<PyDict>> {
@@ -295,7 +312,7 @@ impl World {
             info: info.unbind(),
             message_written: false,
             grid: PyArray4::zeros(py, [n, CHANNELS, f, f], false).unbind(),
-            vector: PyArray2::zeros(py, [n, VECTOR_LEN], false).unbind(),
+            vector: PyArray2::zeros(py, [n, vector_len], false).unbind(),
             action_mask: PyArray2::zeros(py, [n, N_ACTIONS], false).unbind(),
             message: PyArray3::zeros(py, [n, n, N_ACTIONS], false).unbind(),
             rank: PyArray1::zeros(py, [n], false).unbind(),

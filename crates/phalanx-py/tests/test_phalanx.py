@@ -438,7 +438,9 @@ def test_a_trained_imitation_student_plays_in_python_as_phalanx_solve(instance_f
     train = ["train", "imitation", "--config", str(config), "--out", str(student)]
     subprocess.run([phalanx_bin(), *train], check=True, capture_output=True)
     policy = phalanx.load_policy("imitation", weights=student)
-    trajectory = play(policy, phalanx.parallel_env(instance=instance_file, task="meta"))
+    env = phalanx.parallel_env(instance=instance_file, task="meta", place_vector=True)
+    assert env.observation_space("agent_0")["place"].shape == (3,)
+    trajectory = play(policy, env)
     plan = tmp_path / "plan.yaml"
     solve = ["solve", str(instance_file), "--planner", "imitation", "--weights", str(student)]
     solve += ["--rollouts", "1", "--partial", "-o", str(plan)]

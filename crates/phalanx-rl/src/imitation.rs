@@ -83,7 +83,8 @@ pub struct DataConfig {
     /// The training pool the episodes are drawn from (never the evaluation stream).
     pub pool: PoolConfig,
     /// The environment the episodes run in (field of view, step limit, clipping of the
-    /// masks). Default: the meta task's (formation clipping), otherwise the paper's.
+    /// masks, the place vector). Default: the meta task's (formation clipping) with the
+    /// place vector, otherwise the paper's.
     pub env: EnvConfig,
     /// The acting order of the labels; default path finding (the agent in front leads, the
     /// hierarchy's low-level order before its frame).
@@ -128,7 +129,7 @@ impl Default for DataConfig {
     fn default() -> DataConfig {
         DataConfig {
             pool: PoolConfig::default(),
-            env: EnvConfig { task: Task::Meta, ..EnvConfig::default() },
+            env: EnvConfig { task: Task::Meta, place_vector: true, ..EnvConfig::default() },
             leader_rule: LeaderRule::PathFinding,
             agents: vec![3, 4, 5],
             episodes: 1000,
@@ -438,7 +439,7 @@ pub struct Sample<'a> {
     pub rank: usize,
     /// Its channels, `[4, F, F]` (`docs/observation.md`).
     pub grid: &'a [f32],
-    /// Its goal vector, `[3]`.
+    /// Its goal vector, then its place vector with `EnvConfig::place_vector`, `[3]` or `[6]`.
     pub vector: &'a [f32],
     /// Its action mask under the environment's clipping, `[5]`.
     pub mask: &'a [bool],

@@ -16,6 +16,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::frozen::{FrozenNet, State};
 use crate::net::{MASKED_Q, QNet, QNetConfig, masked_argmax};
+use phalanx_env::obs::VECTOR_LEN;
 use phalanx_env::{EnvConfig, ObsBuffers, Task};
 
 /// A frozen Q-network that acts: batched recurrent step, then the head in leader order.
@@ -65,11 +66,13 @@ impl Policy {
     }
 
     /// The settings of an environment of `task` this policy acts in: its network's field of
-    /// view, the rest the defaults (the step limit `3 × side`). Every command, the benchmark
-    /// and the Python package derive a policy's environment here (a hierarchy's:
-    /// `Hierarchy::env_config`).
+    /// view, the place vector on the meta task when the network reads a vector of 6 (the
+    /// planners' student, `docs/imitation.md`), the rest the defaults (the step limit
+    /// `3 × side`). Every command, the benchmark and the Python package derive a policy's
+    /// environment here (a hierarchy's: `Hierarchy::env_config`).
     pub fn env_config(&self, task: Task) -> EnvConfig {
-        EnvConfig { fov: self.config.fov as u32, task, ..EnvConfig::default() }
+        let place_vector = task == Task::Meta && self.config.env_vec == 2 * VECTOR_LEN;
+        EnvConfig { fov: self.config.fov as u32, task, place_vector, ..EnvConfig::default() }
     }
 
     /// Replace the weights, keeping the recurrent state (a learner's policy after an update).

@@ -1,7 +1,8 @@
 //! The hierarchy's episode: the low level's acting order after the meta choices and where the
 //! formation frame is anchored.
 
-use phalanx_env::{EnvConfig, HierEnv, MetaInputs, ObsBuffers};
+use phalanx_core::Action;
+use phalanx_env::{Env, EnvConfig, HierEnv, MetaInputs, ObsBuffers, Task};
 
 use crate::{c, instance};
 
@@ -136,4 +137,30 @@ fn the_meta_observation_reads_the_place() {
     let mut meta = ObsBuffers::new(3, plain.meta_shape());
     plain.reset_to(&inst, 1.0, &mut meta).unwrap();
     assert_eq!(meta.vec_of(0), plain.pathfinding_obs().vec_of(0));
+}
+
+#[test]
+fn the_environment_writes_the_meta_observations_place_vector() {
+    // The student's observation (`EnvConfig::place_vector`) holds what the hierarchy's meta
+    // observation holds: the goal vector, then the place vector on the agent in front, at
+    // every step; the hierarchy's own low level never reads it.
+    let inst = instance(12, 4, &[], &[c(4, 2), c(4, 1), c(6, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
+    let config = EnvConfig { task: Task::Meta, place_vector: true, ..EnvConfig::default() };
+    let mut hier = HierEnv::new(config.clone(), 3, MetaInputs { place: true }).unwrap();
+    assert_eq!(hier.pathfinding_obs().shape.env_vec, 3);
+    let mut meta = ObsBuffers::new(3, hier.meta_shape());
+    hier.reset_to(&inst, 1.0, &mut meta).unwrap();
+    let mut env = Env::new(config).unwrap();
+    assert_eq!(env.obs_shape().env_vec, 6);
+    env.reset(&inst).unwrap();
+    let mut obs = ObsBuffers::new(3, env.obs_shape());
+    let moves = [[Action::Down, Action::Right, Action::Right], [Action::Right; 3]];
+    for (t, joint) in moves.iter().enumerate() {
+        env.observe(&mut obs);
+        assert_eq!(env.front(), meta.order[0], "step {t}");
+        assert_eq!(obs.vec, meta.vec, "step {t}");
+        env.step(joint);
+        hier.set_choices(&[0, 0, 0]);
+        hier.step(&joint.map(|a| a.index() as u8), &mut meta);
+    }
 }

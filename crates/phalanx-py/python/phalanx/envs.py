@@ -71,6 +71,7 @@ class _Core:
         seed: int | None,
         instance: str | os.PathLike | None,
         render_mode: str | None,
+        place_vector: bool,
     ) -> None:
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise _phalanx.PhalanxError(
@@ -78,7 +79,9 @@ class _Core:
             )
         path = None if instance is None else os.fspath(instance)
         weight = 1.0 if formation_weight is None else float(formation_weight)
-        self.world = _phalanx.World(size, density, agents, task, fov, weight, path)
+        self.world = _phalanx.World(
+            size, density, agents, task, fov, weight, path, bool(place_vector)
+        )
         if task == "meta" and formation_weight is None:
             n = self.world.n_agents
             self.world.set_formation_weight(_phalanx.default_formation_weight(n))
@@ -95,7 +98,9 @@ class _Core:
         self.obs: dict[str, AgentObservation] = {}
         for i, name in enumerate(self.names):
             views = {c: grid[i, k] for k, c in enumerate(CHANNELS)}
-            views["goal"] = vector[i]
+            views["goal"] = vector[i, :3]
+            if place_vector:
+                views["place"] = vector[i, 3:]
             views["action_mask"] = mask[i]
             views["message"] = message[i]
             views["rank"] = rank[i : i + 1].reshape(())
@@ -105,20 +110,22 @@ class _Core:
             observation.world = self.world
             self.obs[name] = observation
         grid_box = spaces.Box(0.0, 1.0, (f, f), np.float32)
-        self.observation_space = spaces.Dict(
-            {
-                "obstacles": grid_box,
-                "agents": spaces.Box(0.0, 1.0, (f, f), np.float32),
-                "cost": spaces.Box(-1.0, 2.0, (f, f), np.float32),
-                "formation": spaces.Box(0.0, 1.0, (f, f), np.float32),
-                "goal": spaces.Box(
-                    np.array([-1, -1, 0], np.float32), np.array([1, 1, 1], np.float32)
-                ),
-                "action_mask": spaces.Box(0, 1, (len(ACTIONS),), np.int8),
-                "message": spaces.Box(0.0, 1.0, (n, len(ACTIONS)), np.float32),
-                "rank": spaces.Discrete(n),
-            }
+        vector_box = spaces.Box(
+            np.array([-1, -1, 0], np.float32), np.array([1, 1, 1], np.float32)
         )
+        observation_space = {
+            "obstacles": grid_box,
+            "agents": spaces.Box(0.0, 1.0, (f, f), np.float32),
+            "cost": spaces.Box(-1.0, 2.0, (f, f), np.float32),
+            "formation": spaces.Box(0.0, 1.0, (f, f), np.float32),
+            "goal": vector_box,
+            "action_mask": spaces.Box(0, 1, (len(ACTIONS),), np.int8),
+            "message": spaces.Box(0.0, 1.0, (n, len(ACTIONS)), np.float32),
+            "rank": spaces.Discrete(n),
+        }
+        if place_vector:
+            observation_space["place"] = vector_box
+        self.observation_space = spaces.Dict(observation_space)
         self.action_space = spaces.Discrete(len(ACTIONS))
 
     def reset(self, seed: int | None) -> None:
@@ -164,9 +171,19 @@ class _Shared:
         seed: int | None = None,
         instance: str | os.PathLike | None = None,
         render_mode: str | None = None,
+        place_vector: bool = False,
     ) -> None:
         self._core = _Core(
-            size, density, agents, task, fov, formation_weight, seed, instance, render_mode
+            size,
+            density,
+            agents,
+            task,
+            fov,
+            formation_weight,
+            seed,
+            instance,
+            render_mode,
+            place_vector,
         )
         self.render_mode = render_mode
         self.possible_agents = list(self._core.names)
@@ -291,7 +308,10 @@ def parallel_env(**kwargs: Any) -> ParallelEnv:
     ``"formation"``, ``"meta"``), ``fov=9``, ``formation_weight=None`` (the meta task's
     ``w_f`` of Eq. 14 for the team size), ``seed=None``, ``instance=None`` (a
     libMultiRobotPlanning ``.yaml`` or MovingAI ``.scen`` path, played every episode),
-    ``render_mode=None`` (``"ansi"``, ``"rgb_array"`` or ``"svg"``)."""
+    ``render_mode=None`` (``"ansi"``, ``"rgb_array"`` or ``"svg"``), ``place_vector=False``
+    (meta task only: each observation gains ``"place"``, the vector towards the agent's
+    place in the goal layout placed on the agent in front, which the planners' student
+    ``load_policy("imitation")`` reads)."""
     return ParallelEnv(**kwargs)
 
 

@@ -2,7 +2,8 @@
 
 ``load_policy(name)`` gives a policy whose ``act(observations)`` takes the observation dict
 of a phalanx environment (``{agent: {"obstacles", "agents", "cost", "formation", "goal",
-"action_mask", "message", "rank"}}``) and returns ``{agent: action}``. Agents choose in the
+"action_mask", "message", "rank"}}``, and ``"place"`` for the planners' student, which
+reads it: ``parallel_env(task="meta", place_vector=True)``) and returns ``{agent: action}``. Agents choose in the
 order of their ``rank``, each with the actions of those before it as its message, so the
 parallel form plays exactly as the turn-by-turn one. The recurrent state is carried from
 call to call: ``reset()`` at the start of every episode.
@@ -42,7 +43,16 @@ class Policy:
         grid = np.ascontiguousarray(
             np.stack([np.stack([o[c] for c in CHANNELS]) for o in obs]), dtype=np.float32
         )
-        vector = np.ascontiguousarray(np.stack([o["goal"] for o in obs]), dtype=np.float32)
+        if self._net.vector_len == 6:
+            if any("place" not in o for o in obs):
+                raise _phalanx.PhalanxError(
+                    f"{self.name}: the policy reads the place vector: observations of "
+                    "parallel_env(task='meta', place_vector=True)"
+                )
+            rows = [np.concatenate([o["goal"], o["place"]]) for o in obs]
+        else:
+            rows = [o["goal"] for o in obs]
+        vector = np.ascontiguousarray(np.stack(rows), dtype=np.float32)
         mask = np.ascontiguousarray(np.stack([o["action_mask"] for o in obs]), dtype=np.int8)
         rank = np.ascontiguousarray([int(o["rank"]) for o in obs], dtype=np.int64)
         actions = self._net.act(grid, vector, mask, rank, epsilon)

@@ -15,7 +15,8 @@
 
 use std::path::PathBuf;
 
-use phalanx_env::{EnvConfig, LeaderRule, ObsBuffers, TaskEnv};
+use phalanx_env::obs::VECTOR_LEN;
+use phalanx_env::{EnvConfig, LeaderRule, ObsBuffers, PoolConfig, Task, TaskEnv};
 use serde::{Deserialize, Serialize};
 
 use super::{DataConfig, DataError, Dataset, ExpertEpisode, StudentRollouts};
@@ -30,7 +31,7 @@ use crate::replay::{Episode, SequenceMode};
 pub struct ImitationConfig {
     /// The cloning data: expert episodes on the training pool (teams of 3 to 8 by default).
     pub data: DataConfig,
-    /// The student's network (five actions, the goal vector, 8 agent slots).
+    /// The student's network (five actions, the goal and place vectors, 8 agent slots).
     pub net: QNetConfig,
     /// Adam's learning rate.
     pub lr: f64,
@@ -46,6 +47,9 @@ pub struct ImitationConfig {
     pub rounds: u32,
     /// Student episodes relabelled per DAgger round.
     pub round_episodes: u64,
+    /// The training pool of the DAgger rounds' episodes (`None`: the cloning data's,
+    /// `data.pool`); larger maps than cloning's let the student meet long routes.
+    pub round_pool: Option<PoolConfig>,
     /// Updates after each DAgger round's data.
     pub round_updates: u64,
     /// The student's random-action rate in its DAgger rollouts.
@@ -70,7 +74,7 @@ impl Default for ImitationConfig {
                 episodes: 1500,
                 ..DataConfig::default()
             },
-            net: QNetConfig::default(),
+            net: QNetConfig { env_vec: 2 * VECTOR_LEN, ..QNetConfig::default() },
             lr: 1e-3,
             batch_size: 16,
             sequence: SequenceMode::Episodes,
@@ -78,6 +82,7 @@ impl Default for ImitationConfig {
             updates: 3000,
             rounds: 4,
             round_episodes: 300,
+            round_pool: None,
             round_updates: 1500,
             round_epsilon: 0.0,
             checkpoint_every: 250,
@@ -107,12 +112,17 @@ impl ImitationConfig {
     pub fn check(&self) -> Result<(), String> {
         self.net.check().map_err(|err| format!("net: {err}"))?;
         let net = &self.net;
-        if net.n_actions != phalanx_core::Action::COUNT || net.env_vec != 3 || net.centralised {
+        let vector = if self.data.env.place_vector { 2 * VECTOR_LEN } else { VECTOR_LEN };
+        if net.n_actions != phalanx_core::Action::COUNT || net.env_vec != vector || net.centralised
+        {
             return Err(format!(
-                "net: the student is a decentralised network of 5 actions and a vector of 3 \
-                 (n_actions {}, env_vec {}, centralised {})",
-                net.n_actions, net.env_vec, net.centralised
+                "net: the student is a decentralised network of 5 actions and a vector of \
+                 {vector} (data.env.place_vector {}; n_actions {}, env_vec {}, centralised {})",
+                self.data.env.place_vector, net.n_actions, net.env_vec, net.centralised
             ));
+        }
+        if self.data.env.place_vector && self.data.env.task != Task::Meta {
+            return Err("data.env.place_vector: the place vector is the meta task's".into());
         }
         if self.data.env.fov as usize != net.fov {
             return Err(format!("net.fov {} is not data.env.fov {}", net.fov, self.data.env.fov));
@@ -173,10 +183,12 @@ impl ImitationConfig {
         self.updates + self.round_updates * u64::from(round)
     }
 
-    /// The data settings of DAgger round `round` (1 on): `round_episodes` episodes from
-    /// their own seed, moved by the student whose network has the CRC-32 `network`.
+    /// The data settings of DAgger round `round` (1 on): `round_episodes` episodes of
+    /// `round_pool` from their own seed, moved by the student whose network has the CRC-32
+    /// `network`.
     pub fn round_data(&self, round: u32, network: u32) -> DataConfig {
         DataConfig {
+            pool: self.round_pool.clone().unwrap_or_else(|| self.data.pool.clone()),
             episodes: self.round_episodes,
             seed: round_seed(self.data.seed, round),
             student: Some(StudentRollouts { round, network, epsilon: self.round_epsilon }),
@@ -305,7 +317,9 @@ mod tests {
             for_each_sample(episode, &config.data.env, rule, |s| {
                 let row = s.t * n + s.agent;
                 assert_eq!(&it.grid[row * grid..(row + 1) * grid], s.grid);
-                assert_eq!(&it.vec[row * 3..row * 3 + 3], s.vector);
+                let width = s.vector.len();
+                assert_eq!(width, 6, "the student reads the goal and place vectors");
+                assert_eq!(&it.vec[row * width..(row + 1) * width], s.vector);
                 assert_eq!(&it.action_mask[row * 5..row * 5 + 5], s.mask);
                 assert_eq!(it.order[s.t * n + s.rank], s.agent);
                 assert_eq!(usize::from(it.actions[row]), s.target.index());

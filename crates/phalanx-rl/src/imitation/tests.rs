@@ -72,14 +72,25 @@ fn messages_are_the_expert_actions_of_the_agents_ranked_before() {
             env.step(&step.taken);
         }
         let mut k = 0;
+        let mut replay = Env::new(config.env.clone()).unwrap();
+        replay.reset(&episode.instance).unwrap();
+        let mut at = 0;
         for_each_sample(episode, &config.env, config.leader_rule, |s| {
+            while at < s.t {
+                replay.step(&episode.steps[at].taken);
+                at += 1;
+            }
             assert_eq!(s.message, expected[k].as_slice(), "sample {k}");
             let step = &episode.steps[s.t];
             assert_eq!(usize::from(step.order[s.rank]), s.agent);
             assert_eq!(s.target, step.expert[s.agent]);
             assert!(s.mask[s.target.index()], "the label is allowed by the mask");
             assert_eq!(s.grid.len(), 4 * 9 * 9);
-            assert_eq!(s.vector.len(), 3);
+            // The goal vector, then the place vector on the agent in front.
+            assert_eq!(s.vector.len(), 6);
+            let mut place = [0.0; 3];
+            replay.write_place_vector(s.agent, usize::from(step.order[0]), &mut place);
+            assert_eq!(&s.vector[3..], place, "sample {k}");
             k += 1;
         })
         .unwrap();
