@@ -1,8 +1,9 @@
 //! `phalanx demo`: the product at a glance, on generated data and a shipped MovingAI map (no
 //! downloads). Two instances — a generated 32² map and a formation placed on the MovingAI
-//! map `den312d` (built into the binary) — are solved by the learned hierarchy (the meta
-//! policy if one is shipped, else the scripted leader rule over the learned low level), the
-//! learned path-finding policy alone, CBS and SWARM-MAPF, each plan scored by the one
+//! map `den312d` (built into the binary) — are solved by the planners' student (when one is
+//! shipped, `models/imitation`), the learned hierarchy (the meta policy if one is shipped,
+//! else the scripted leader rule over the learned low level), the learned path-finding policy
+//! alone, CBS and SWARM-MAPF, each plan scored by the one
 //! validator. It prints the comparison table and writes under `--out` (default `out/demo`):
 //!
 //! - `index.html`: one self-contained page with the table and the animations side by side;
@@ -22,6 +23,7 @@ use phalanx_eval::{Method, Settings, Solved, Sources};
 use phalanx_io::{MovingAiMap, PlanStats};
 use phalanx_plan::planner::Outcome;
 use phalanx_render::{Format, Options, Scene};
+use phalanx_rl::models;
 use rayon::prelude::*;
 
 use crate::{bench, meta, util};
@@ -68,9 +70,11 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
         .collect::<Result<_, _>>()?;
     let meta_file = bench::meta_file(None)?;
     let hierarchy = if meta_file.is_some() { "hrl" } else { "leader" };
-    let names = [hierarchy, "pathfinding", "cbs", "swarm"];
+    // The planners' student first when one is shipped (docs/imitation.md).
+    let student = models::weights_file(None, "imitation").is_ok().then_some("imitation");
+    let names = student.into_iter().chain([hierarchy, "pathfinding", "cbs", "swarm"]);
     let mut methods = names
-        .iter()
+        .into_iter()
         .map(|spec| {
             let sources =
                 Sources { jsa_max_side: Some(0), meta: meta_file.as_deref(), ..Sources::default() };

@@ -53,8 +53,8 @@ fn kept(given: &Value, saved: &Value, except: &[&str], at: &str) -> Result<(), S
 fn every_shipped_configuration_trains_as_it_is() {
     let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models");
     let files = configured(&models);
-    // pathfinding, formation, meta, e2e, ctce and the six points of the front.
-    assert_eq!(files.len(), 11, "{files:?}");
+    // pathfinding, formation, meta, e2e, ctce, imitation and the six points of the front.
+    assert_eq!(files.len(), 12, "{files:?}");
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     for (i, file) in files.iter().enumerate() {
@@ -69,14 +69,40 @@ fn every_shipped_configuration_trains_as_it_is() {
             let own = file.with_file_name("policy.bin");
             config["init_from"] = Value::from(own.to_str().unwrap());
         }
+        if task == "imitation" {
+            // The student's run starts by making its expert data and validates after every
+            // round: the same settings on a few small maps, so that it ends in seconds.
+            shrink_imitation(&mut config);
+        }
         let cfg = d.join(format!("cfg-{i}.json"));
         std::fs::write(&cfg, serde_json::to_string_pretty(&config).unwrap()).unwrap();
         let out = format!("run-{i}");
-        let args = ["train", task, "--config", cfg.to_str().unwrap(), "--steps", "45"];
+        let steps = if task == "imitation" { "6" } else { "45" };
+        let args = ["train", task, "--config", cfg.to_str().unwrap(), "--steps", steps];
         check(&phalanx(d, &[&args[..], &["--out", &out]].concat()), 0);
         let saved: Value = serde_json::from_str(&read(&d.join(&out).join("config.json"))).unwrap();
         if let Err(why) = kept(&config, &saved, &["steps"], "config") {
             panic!("{}: the run changed the configuration: {why}", file.display());
         }
     }
+}
+
+/// An imitation run's settings with a few small pool maps, few episodes and one validation
+/// instance per 20² row; the network, the learner and the schedule's fields stay.
+fn shrink_imitation(config: &mut Value) {
+    let small_pool = serde_json::json!({"n_maps": 2, "size": 16});
+    let data = &mut config["data"];
+    data["episodes"] = Value::from(4);
+    data["agents"] = Value::from(vec![3, 4]);
+    for pool in [&mut data["pool"], &mut config["round_pool"]] {
+        if pool.is_object() {
+            for (key, value) in small_pool.as_object().unwrap() {
+                pool[key] = value.clone();
+            }
+        }
+    }
+    config["round_episodes"] = Value::from(2);
+    config["batch_size"] = Value::from(2);
+    config["validation_maps"] = Value::from(1);
+    config["validation_max_side"] = Value::from(20);
 }
