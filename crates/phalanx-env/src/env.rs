@@ -794,6 +794,29 @@ impl Env {
 
     /// Writes agent `agent`'s four channels, `[4, F, F]`.
     pub fn write_grid(&self, agent: usize, out: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            unsafe { self.write_grid_avx2(agent, out) };
+            return;
+        }
+        self.write_grid_any(agent, out);
+    }
+
+    /// [`Env::write_grid`] compiled for AVX2 (eight lanes a row of the window instead of
+    /// four): the same operations on the same values, so the same bits.
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn write_grid_avx2(&self, agent: usize, out: &mut [f32]) {
+        self.write_grid_any(agent, out);
+    }
+
+    /// [`Env::write_grid`] for any processor.
+    #[inline(always)]
+    fn write_grid_any(&self, agent: usize, out: &mut [f32]) {
         // The usual fields of view get loops of a known length (unrolled, bounds checks
         // hoisted); any other takes the same code with a run-time length.
         let n_padded = self.n_padded;

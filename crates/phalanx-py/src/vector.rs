@@ -18,7 +18,6 @@
 //! the observations are always those to act on.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 use numpy::{
@@ -566,12 +565,20 @@ fn for_each_env<R: Rows>(
         blocks.push(Mutex::new(Block::Pending(block, block_rows, first)));
         (slots, rows, first) = (rest, rest_rows, first + take);
     }
-    let next = AtomicUsize::new(0);
-    let drain = || {
+    // The blocks not yet taken, `front..back`: the calling thread takes them from the front,
+    // the helpers from the back, so that each thread tends to step the same environments
+    // call after call (their maps stay in its core's cache) while a thread that the machine
+    // holds back leaves its share to the others.
+    let untaken = Mutex::new(0..blocks.len());
+    let drain = |from_back: bool| {
         loop {
-            let k = next.fetch_add(1, Ordering::Relaxed);
-            let Some(block) = blocks.get(k) else { return };
-            let mut block = block.lock().unwrap_or_else(PoisonError::into_inner);
+            let k = {
+                let mut untaken = untaken.lock().unwrap_or_else(PoisonError::into_inner);
+                let k = if from_back { untaken.next_back() } else { untaken.next() };
+                let Some(k) = k else { return };
+                k
+            };
+            let mut block = blocks[k].lock().unwrap_or_else(PoisonError::into_inner);
             if let Block::Pending(slots, rows, first) = std::mem::replace(&mut *block, Block::Taken)
             {
                 *block = Block::Done(work(slots, rows, first));
@@ -595,10 +602,11 @@ fn for_each_env<R: Rows>(
     Ok(())
 }
 
-/// Runs `drain` on `helpers` threads of `scope`'s pool and on the calling thread.
-fn spread<'s>(scope: &rayon::Scope<'s>, helpers: usize, drain: &'s (impl Fn() + Sync)) {
+/// Runs `drain(true)` (from the back) on `helpers` threads of `scope`'s pool and
+/// `drain(false)` on the calling thread.
+fn spread<'s>(scope: &rayon::Scope<'s>, helpers: usize, drain: &'s (impl Fn(bool) + Sync)) {
     for _ in 0..helpers {
-        scope.spawn(move |_| drain());
+        scope.spawn(move |_| drain(true));
     }
-    drain();
+    drain(false);
 }
