@@ -104,6 +104,17 @@ impl DistMaps {
     }
 }
 
+/// Each action's displacement `(dx, dy)` by action index ([`Action::delta`]).
+const CELL_DELTAS: [(i32, i32); N_ACTIONS] = {
+    let mut deltas = [(0, 0); N_ACTIONS];
+    let mut k = 0;
+    while k < N_ACTIONS {
+        deltas[k] = Action::ALL[k].delta();
+        k += 1;
+    }
+    deltas
+};
+
 /// Table I of the paper, per agent per step.
 mod reward {
     pub(super) const COLLISION: f32 = -50.0;
@@ -576,26 +587,27 @@ impl Env {
         assert!(!self.done, "step after the episode ended; reset first");
         assert_eq!(actions.len(), self.pos.len(), "one action per agent");
         let n_cancelled = self.resolve(actions);
-        // Apply: vacate, then occupy (targets are pairwise distinct by now).
+        // Apply: vacate, then occupy (targets are pairwise distinct by now). Every agent
+        // vacates its cell and occupies its target, an agent that stays its own cell again,
+        // and every agent's distance is read at its target (a stayer's is its own, so it is
+        // not closer): no branch on who moved, which random actions would mispredict.
         let n_padded = self.n_padded;
-        for (&from, &to) in self.pos_idx.iter().zip(&self.target) {
-            if from != to {
-                self.occ[from as usize] = NONE;
-                self.occ_obs[from as usize] = 0.0;
-            }
+        for &from in &self.pos_idx {
+            self.occ[from as usize] = NONE;
+            self.occ_obs[from as usize] = 0.0;
         }
         for (i, &action) in actions.iter().enumerate() {
             let (from, to) = (self.pos_idx[i], self.target[i]);
-            self.closer[i] = false;
-            if from != to {
-                self.occ[to as usize] = i as u16;
-                self.occ_obs[to as usize] = self.ident[i];
-                self.pos_idx[i] = to;
-                self.pos[i] = action.apply(self.pos[i]);
-                let d = self.dist.at(i * n_padded + to as usize);
-                self.closer[i] = d < self.own_dist[i];
-                self.own_dist[i] = d;
-            }
+            self.occ[to as usize] = i as u16;
+            self.occ_obs[to as usize] = self.ident[i];
+            self.pos_idx[i] = to;
+            // The action's displacement, or none for a stayer (a table, not a branch).
+            let (dx, dy) = CELL_DELTAS[action.index()];
+            let moved = i32::from(from != to);
+            self.pos[i] = self.pos[i].offset(dx * moved, dy * moved);
+            let d = self.dist.at(i * n_padded + to as usize);
+            self.closer[i] = d < self.own_dist[i];
+            self.own_dist[i] = d;
         }
         self.t += 1;
         let mut all_on_goal = true;
@@ -616,20 +628,24 @@ impl Env {
         let loss = self.loss as f32;
         let w_f = self.config.formation_weight as f32;
         let c_idle = self.config.idle_cost as f32;
+        let waiting = match task {
+            Task::PathFinding | Task::Formation => reward::NO_MOVE,
+            Task::Meta => 0.0,
+        };
+        let towards = match task {
+            Task::PathFinding | Task::Meta => reward::TOWARDS_GOAL,
+            Task::Formation => 0.0,
+        };
         let mut team = 0.0;
         for (i, &action) in actions.iter().enumerate() {
+            // Selects between the task's values, not branches (random actions mispredict).
+            let moving = if self.closer[i] { towards } else { 0.0 };
             let r = if self.cancelled[i] {
                 reward::COLLISION
             } else if action == Action::Wait {
-                match task {
-                    Task::PathFinding | Task::Formation => reward::NO_MOVE,
-                    Task::Meta => 0.0,
-                }
+                waiting
             } else {
-                match task {
-                    Task::PathFinding | Task::Meta if self.closer[i] => reward::TOWARDS_GOAL,
-                    _ => 0.0,
-                }
+                moving
             };
             let r = r + match task {
                 Task::PathFinding => {
@@ -666,13 +682,8 @@ impl Env {
         // Targets; moves into blocked cells are cancelled at once.
         for (i, &action) in actions.iter().enumerate() {
             let p = self.pos_idx[i];
-            let delta = match action {
-                Action::Up => pw,
-                Action::Down => -pw,
-                Action::Left => -1,
-                Action::Right => 1,
-                Action::Wait => 0,
-            };
+            // By action index, a table rather than a branch per action.
+            let delta = [pw, -pw, -1, 1, 0][action.index()];
             let t = (p as isize + delta) as u32;
             let blocked = self.blocked[t as usize] != 0;
             self.cancelled[i] = blocked;

@@ -150,10 +150,11 @@ pub(crate) struct ObsRows<'a> {
 impl<'a> ObsRows<'a> {
     /// The rows of the first `agents` agents and those of the rest.
     pub(crate) fn split_at(self, agents: usize) -> (ObsRows<'a>, ObsRows<'a>) {
-        let per_agent = |len: usize| len / self.rank.len().max(1) * agents;
-        let (grid, grid_rest) = self.grid.split_at_mut(per_agent(self.grid.len()));
-        let (vector, vector_rest) = self.vector.split_at_mut(per_agent(self.vector.len()));
-        let (mask, mask_rest) = self.mask.split_at_mut(per_agent(self.mask.len()));
+        // One division (the grid's length per agent), the other rows' lengths are constants.
+        let grid_len = self.grid.len() / self.rank.len().max(1);
+        let (grid, grid_rest) = self.grid.split_at_mut(grid_len * agents);
+        let (vector, vector_rest) = self.vector.split_at_mut(VECTOR_LEN * agents);
+        let (mask, mask_rest) = self.mask.split_at_mut(N_ACTIONS * agents);
         let (rank, rank_rest) = self.rank.split_at_mut(agents);
         (
             ObsRows { grid, vector, mask, rank },
