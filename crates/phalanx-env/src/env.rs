@@ -805,13 +805,27 @@ impl Env {
 
     /// Writes agent `agent`'s four channels, `[4, F, F]`.
     pub fn write_grid(&self, agent: usize, out: &mut [f32]) {
+        self.write_channels(agent, out, true);
+    }
+
+    /// Writes agent `agent`'s obstacle, position and cost channels into `out` (`[4, F, F]`,
+    /// as [`Env::write_grid`]) and leaves its formation channel as it is: that channel is
+    /// the same throughout an episode, so a writer that wrote the episode's first
+    /// observation into `out` with [`Env::write_grid`] need not copy it again every step.
+    pub fn write_grid_changing(&self, agent: usize, out: &mut [f32]) {
+        self.write_channels(agent, out, false);
+    }
+
+    /// The channels, the formation channel too when `formation`.
+    #[inline]
+    fn write_channels(&self, agent: usize, out: &mut [f32], formation: bool) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor has AVX2, checked just above.
-            unsafe { self.write_grid_avx2(agent, out) };
+            unsafe { self.write_grid_avx2(agent, out, formation) };
             return;
         }
-        self.write_grid_any(agent, out);
+        self.write_grid_any(agent, out, formation);
     }
 
     /// [`Env::write_grid`] compiled for AVX2 (eight lanes a row of the window instead of
@@ -821,13 +835,13 @@ impl Env {
     /// The processor must have AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn write_grid_avx2(&self, agent: usize, out: &mut [f32]) {
-        self.write_grid_any(agent, out);
+    unsafe fn write_grid_avx2(&self, agent: usize, out: &mut [f32], formation: bool) {
+        self.write_grid_any(agent, out, formation);
     }
 
     /// [`Env::write_grid`] for any processor.
     #[inline(always)]
-    fn write_grid_any(&self, agent: usize, out: &mut [f32]) {
+    fn write_grid_any(&self, agent: usize, out: &mut [f32], formation: bool) {
         // The usual fields of view get loops of a known length (unrolled, bounds checks
         // hoisted); any other takes the same code with a run-time length.
         let n_padded = self.n_padded;
@@ -835,23 +849,30 @@ impl Env {
             DistMaps::Narrow(maps) => {
                 let map = &maps[agent * n_padded..(agent + 1) * n_padded];
                 match self.fov {
-                    9 => self.write_window(9, agent, map, out),
-                    11 => self.write_window(11, agent, map, out),
-                    _ => self.write_window(self.fov, agent, map, out),
+                    9 => self.write_window(9, agent, map, out, formation),
+                    11 => self.write_window(11, agent, map, out, formation),
+                    _ => self.write_window(self.fov, agent, map, out, formation),
                 }
             }
             DistMaps::Wide(maps) => {
                 let map = &maps[agent * n_padded..(agent + 1) * n_padded];
-                self.write_window(self.fov, agent, map, out);
+                self.write_window(self.fov, agent, map, out, formation);
             }
         }
     }
 
     /// [`Env::write_grid`] for `f == self.fov`: the obstacle and position channels are row
     /// copies of padded maps of their values, the cost channel is computed row by row from
-    /// the distance map, the formation channel is the episode's.
+    /// the distance map, the formation channel is the episode's (written when `formation`).
     #[inline(always)]
-    fn write_window<D: Distance>(&self, f: usize, agent: usize, dist: &[D], out: &mut [f32]) {
+    fn write_window<D: Distance>(
+        &self,
+        f: usize,
+        agent: usize,
+        dist: &[D],
+        out: &mut [f32],
+        formation_too: bool,
+    ) {
         let ff = f * f;
         assert_eq!(out.len(), CHANNELS * ff, "channel buffer of another size");
         let (obstacles, rest) = out.split_at_mut(ff);
@@ -891,7 +912,9 @@ impl Env {
         }
         // The centre is this agent (`parked` when on its own goal), always `d(own) - d(own)`.
         cost[self.pad * f + self.pad] = 0.0;
-        formation.copy_from_slice(&self.formation_obs[agent * ff..(agent + 1) * ff]);
+        if formation_too {
+            formation.copy_from_slice(&self.formation_obs[agent * ff..(agent + 1) * ff]);
+        }
     }
 
     /// Writes agent `agent`'s scaled goal vector `(dx/‖d‖, dy/‖d‖, ‖d‖/(‖d‖ + F))`.
@@ -1153,6 +1176,42 @@ mod tests {
             let (starts, goals) = (free[..n].to_vec(), free[n..2 * n].to_vec());
             if let Ok(instance) = Instance::new(grid, starts, goals) {
                 return instance;
+            }
+        }
+    }
+
+    /// Channels written every step without the formation channel, into rows that hold the
+    /// episode's first observation, equal the whole observation written anew.
+    #[test]
+    fn the_changing_channels_over_the_first_observation_equal_the_whole_observation() {
+        let mut rng = ChaCha8Rng::seed_from_u64(43);
+        for case in 0..12 {
+            let fov = [5, 9, 11][case % 3];
+            let n = 1 + case % 5;
+            let instance = random_instance(&mut rng, 24, 20, 0.2, n);
+            let task = [Task::PathFinding, Task::Formation, Task::Meta][case % 3];
+            let config = EnvConfig { fov, task, step_limit: Some(40), ..EnvConfig::default() };
+            let mut env = Env::new(config).unwrap();
+            env.reset(&instance).unwrap();
+            let len = CHANNELS * (fov * fov) as usize;
+            let mut kept: Vec<Vec<f32>> = (0..n)
+                .map(|agent| {
+                    let mut rows = vec![f32::NAN; len];
+                    env.write_grid(agent, &mut rows);
+                    rows
+                })
+                .collect();
+            while !env.is_done() {
+                let actions: Vec<Action> =
+                    (0..n).map(|_| Action::ALL[rng.random_range(0..5)]).collect();
+                env.step(&actions);
+                for (agent, kept) in kept.iter_mut().enumerate() {
+                    env.write_grid_changing(agent, kept);
+                    let mut whole = vec![f32::NAN; len];
+                    env.write_grid(agent, &mut whole);
+                    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(kept), bits(&whole), "case {case}, t {}", env.t());
+                }
             }
         }
     }

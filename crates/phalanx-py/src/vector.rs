@@ -53,7 +53,7 @@ impl Slot {
             .map_err(|err| format!("seed {seed}: {}", crate::message(&err)))?;
         self.instance = Some(instance);
         self.seed = seed;
-        observe(&mut self.env, spec.task, obs);
+        observe(&mut self.env, spec.task, obs, true);
         Ok(())
     }
 }
@@ -464,12 +464,13 @@ fn step_one(
     out.truncated.fill(truncated);
     out.ended[0] = terminated || truncated;
     if terminated || truncated {
-        observe(&mut slot.env, spec.task, out.last);
+        observe(&mut slot.env, spec.task, out.last, true);
         let next = slot.seed.wrapping_add(1);
         out.seed[0] = next;
         slot.start(spec, next, out.obs)
     } else {
-        observe(&mut slot.env, spec.task, out.obs);
+        // The rows hold this episode's last observation, its formation channel included.
+        observe(&mut slot.env, spec.task, out.obs, false);
         Ok(())
     }
 }

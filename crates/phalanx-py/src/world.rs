@@ -164,13 +164,19 @@ impl<'a> ObsRows<'a> {
 }
 
 /// Writes every agent's observation into `out` (channels, goal vector, the task's mask), then
-/// starts the step's turns by the task's leader rule and writes each agent's rank.
-pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>) {
+/// starts the step's turns by the task's leader rule and writes each agent's rank. The
+/// formation channel, the same throughout an episode, is written only when `formation`
+/// (rows that hold an earlier observation of the same episode keep theirs).
+pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>, formation: bool) {
     let clip = task.clip();
     let grid_len = out.grid.len() / out.rank.len().max(1);
     for (agent, out) in out.grid.chunks_exact_mut(grid_len).enumerate() {
         env.prefetch_view(agent + Env::PREFETCH_AHEAD);
-        env.write_grid(agent, out);
+        if formation {
+            env.write_grid(agent, out);
+        } else {
+            env.write_grid_changing(agent, out);
+        }
     }
     for (agent, out) in out.vector.chunks_exact_mut(VECTOR_LEN).enumerate() {
         env.write_vector(agent, out);
@@ -609,7 +615,7 @@ impl World {
             mask: mask.as_slice_mut().expect(contiguous),
             rank: rank.as_slice_mut().expect(contiguous),
         };
-        observe(&mut self.env, self.spec.task, rows);
+        observe(&mut self.env, self.spec.task, rows, true);
         if std::mem::take(&mut self.message_written) {
             fill(py, &self.message, |message| message.fill(0.0));
         }
