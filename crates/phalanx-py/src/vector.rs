@@ -1,7 +1,9 @@
 //! The vectorised environment for Python: `E` environments of one setting stepped in one
-//! call, on the calling thread and (with `num_threads` above one) helper threads, with the GIL released, their observations, rewards,
-//! flags and infos written straight into NumPy arrays that Python holds (nothing is copied or
-//! allocated per step, no Python object is made per agent).
+//! call, with the GIL released, on the calling thread (and, with `num_threads` above one,
+//! helper threads), their observations, rewards, flags and infos written straight into NumPy
+//! arrays that Python holds (nothing is copied, no Python object is made per agent, and
+//! nothing is allocated per step on one thread; on more, one list of a few blocks and a task
+//! per helper per call).
 //!
 //! Arrays, allocated once, `E` environments of `N` agents, `F` the field of view:
 //! observations `grid [E, N, 4, F, F]` f32, `vector [E, N, 3]` f32, `action_mask [E, N, 5]`
