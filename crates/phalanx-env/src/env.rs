@@ -104,6 +104,17 @@ impl DistMaps {
     }
 }
 
+/// Each action's displacement `(dx, dy)` by action index ([`Action::delta`]).
+const CELL_DELTAS: [(i32, i32); N_ACTIONS] = {
+    let mut deltas = [(0, 0); N_ACTIONS];
+    let mut k = 0;
+    while k < N_ACTIONS {
+        deltas[k] = Action::ALL[k].delta();
+        k += 1;
+    }
+    deltas
+};
+
 /// Table I of the paper, per agent per step.
 mod reward {
     pub(super) const COLLISION: f32 = -50.0;
@@ -578,26 +589,27 @@ impl Env {
         assert!(!self.done, "step after the episode ended; reset first");
         assert_eq!(actions.len(), self.pos.len(), "one action per agent");
         let n_cancelled = self.resolve(actions);
-        // Apply: vacate, then occupy (targets are pairwise distinct by now).
+        // Apply: vacate, then occupy (targets are pairwise distinct by now). Every agent
+        // vacates its cell and occupies its target, an agent that stays its own cell again,
+        // and every agent's distance is read at its target (a stayer's is its own, so it is
+        // not closer): no branch on who moved, which random actions would mispredict.
         let n_padded = self.n_padded;
-        for (&from, &to) in self.pos_idx.iter().zip(&self.target) {
-            if from != to {
-                self.occ[from as usize] = NONE;
-                self.occ_obs[from as usize] = 0.0;
-            }
+        for &from in &self.pos_idx {
+            self.occ[from as usize] = NONE;
+            self.occ_obs[from as usize] = 0.0;
         }
         for (i, &action) in actions.iter().enumerate() {
             let (from, to) = (self.pos_idx[i], self.target[i]);
-            self.closer[i] = false;
-            if from != to {
-                self.occ[to as usize] = i as u16;
-                self.occ_obs[to as usize] = self.ident[i];
-                self.pos_idx[i] = to;
-                self.pos[i] = action.apply(self.pos[i]);
-                let d = self.dist.at(i * n_padded + to as usize);
-                self.closer[i] = d < self.own_dist[i];
-                self.own_dist[i] = d;
-            }
+            self.occ[to as usize] = i as u16;
+            self.occ_obs[to as usize] = self.ident[i];
+            self.pos_idx[i] = to;
+            // The action's displacement, or none for a stayer (a table, not a branch).
+            let (dx, dy) = CELL_DELTAS[action.index()];
+            let moved = i32::from(from != to);
+            self.pos[i] = self.pos[i].offset(dx * moved, dy * moved);
+            let d = self.dist.at(i * n_padded + to as usize);
+            self.closer[i] = d < self.own_dist[i];
+            self.own_dist[i] = d;
         }
         self.t += 1;
         let mut all_on_goal = true;
@@ -618,20 +630,24 @@ impl Env {
         let loss = self.loss as f32;
         let w_f = self.config.formation_weight as f32;
         let c_idle = self.config.idle_cost as f32;
+        let waiting = match task {
+            Task::PathFinding | Task::Formation => reward::NO_MOVE,
+            Task::Meta => 0.0,
+        };
+        let towards = match task {
+            Task::PathFinding | Task::Meta => reward::TOWARDS_GOAL,
+            Task::Formation => 0.0,
+        };
         let mut team = 0.0;
         for (i, &action) in actions.iter().enumerate() {
+            // Selects between the task's values, not branches (random actions mispredict).
+            let moving = if self.closer[i] { towards } else { 0.0 };
             let r = if self.cancelled[i] {
                 reward::COLLISION
             } else if action == Action::Wait {
-                match task {
-                    Task::PathFinding | Task::Formation => reward::NO_MOVE,
-                    Task::Meta => 0.0,
-                }
+                waiting
             } else {
-                match task {
-                    Task::PathFinding | Task::Meta if self.closer[i] => reward::TOWARDS_GOAL,
-                    _ => 0.0,
-                }
+                moving
             };
             let r = r + match task {
                 Task::PathFinding => {
@@ -668,13 +684,8 @@ impl Env {
         // Targets; moves into blocked cells are cancelled at once.
         for (i, &action) in actions.iter().enumerate() {
             let p = self.pos_idx[i];
-            let delta = match action {
-                Action::Up => pw,
-                Action::Down => -pw,
-                Action::Left => -1,
-                Action::Right => 1,
-                Action::Wait => 0,
-            };
+            // By action index, a table rather than a branch per action.
+            let delta = [pw, -pw, -1, 1, 0][action.index()];
             let t = (p as isize + delta) as u32;
             let blocked = self.blocked[t as usize] != 0;
             self.cancelled[i] = blocked;
@@ -809,6 +820,43 @@ impl Env {
 
     /// Writes agent `agent`'s four channels, `[4, F, F]`.
     pub fn write_grid(&self, agent: usize, out: &mut [f32]) {
+        self.write_channels(agent, out, true);
+    }
+
+    /// Writes agent `agent`'s obstacle, position and cost channels into `out` (`[4, F, F]`,
+    /// as [`Env::write_grid`]) and leaves its formation channel as it is: that channel is
+    /// the same throughout an episode, so a writer that wrote the episode's first
+    /// observation into `out` with [`Env::write_grid`] need not copy it again every step.
+    pub fn write_grid_changing(&self, agent: usize, out: &mut [f32]) {
+        self.write_channels(agent, out, false);
+    }
+
+    /// The channels, the formation channel too when `formation`.
+    #[inline]
+    fn write_channels(&self, agent: usize, out: &mut [f32], formation: bool) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            unsafe { self.write_grid_avx2(agent, out, formation) };
+            return;
+        }
+        self.write_grid_any(agent, out, formation);
+    }
+
+    /// [`Env::write_grid`] compiled for AVX2 (eight lanes a row of the window instead of
+    /// four): the same operations on the same values, so the same bits.
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn write_grid_avx2(&self, agent: usize, out: &mut [f32], formation: bool) {
+        self.write_grid_any(agent, out, formation);
+    }
+
+    /// [`Env::write_grid`] for any processor.
+    #[inline(always)]
+    fn write_grid_any(&self, agent: usize, out: &mut [f32], formation: bool) {
         // The usual fields of view get loops of a known length (unrolled, bounds checks
         // hoisted); any other takes the same code with a run-time length.
         let n_padded = self.n_padded;
@@ -816,23 +864,30 @@ impl Env {
             DistMaps::Narrow(maps) => {
                 let map = &maps[agent * n_padded..(agent + 1) * n_padded];
                 match self.fov {
-                    9 => self.write_window(9, agent, map, out),
-                    11 => self.write_window(11, agent, map, out),
-                    _ => self.write_window(self.fov, agent, map, out),
+                    9 => self.write_window(9, agent, map, out, formation),
+                    11 => self.write_window(11, agent, map, out, formation),
+                    _ => self.write_window(self.fov, agent, map, out, formation),
                 }
             }
             DistMaps::Wide(maps) => {
                 let map = &maps[agent * n_padded..(agent + 1) * n_padded];
-                self.write_window(self.fov, agent, map, out);
+                self.write_window(self.fov, agent, map, out, formation);
             }
         }
     }
 
     /// [`Env::write_grid`] for `f == self.fov`: the obstacle and position channels are row
     /// copies of padded maps of their values, the cost channel is computed row by row from
-    /// the distance map, the formation channel is the episode's.
+    /// the distance map, the formation channel is the episode's (written when `formation`).
     #[inline(always)]
-    fn write_window<D: Distance>(&self, f: usize, agent: usize, dist: &[D], out: &mut [f32]) {
+    fn write_window<D: Distance>(
+        &self,
+        f: usize,
+        agent: usize,
+        dist: &[D],
+        out: &mut [f32],
+        formation_too: bool,
+    ) {
         let ff = f * f;
         assert_eq!(out.len(), CHANNELS * ff, "channel buffer of another size");
         let (obstacles, rest) = out.split_at_mut(ff);
@@ -872,7 +927,9 @@ impl Env {
         }
         // The centre is this agent (`parked` when on its own goal), always `d(own) - d(own)`.
         cost[self.pad * f + self.pad] = 0.0;
-        formation.copy_from_slice(&self.formation_obs[agent * ff..(agent + 1) * ff]);
+        if formation_too {
+            formation.copy_from_slice(&self.formation_obs[agent * ff..(agent + 1) * ff]);
+        }
     }
 
     /// Writes agent `agent`'s scaled goal vector `(dx/‖d‖, dy/‖d‖, ‖d‖/(‖d‖ + F))`.
@@ -1134,6 +1191,42 @@ mod tests {
             let (starts, goals) = (free[..n].to_vec(), free[n..2 * n].to_vec());
             if let Ok(instance) = Instance::new(grid, starts, goals) {
                 return instance;
+            }
+        }
+    }
+
+    /// Channels written every step without the formation channel, into rows that hold the
+    /// episode's first observation, equal the whole observation written anew.
+    #[test]
+    fn the_changing_channels_over_the_first_observation_equal_the_whole_observation() {
+        let mut rng = ChaCha8Rng::seed_from_u64(43);
+        for case in 0..12 {
+            let fov = [5, 9, 11][case % 3];
+            let n = 1 + case % 5;
+            let instance = random_instance(&mut rng, 24, 20, 0.2, n);
+            let task = [Task::PathFinding, Task::Formation, Task::Meta][case % 3];
+            let config = EnvConfig { fov, task, step_limit: Some(40), ..EnvConfig::default() };
+            let mut env = Env::new(config).unwrap();
+            env.reset(&instance).unwrap();
+            let len = CHANNELS * (fov * fov) as usize;
+            let mut kept: Vec<Vec<f32>> = (0..n)
+                .map(|agent| {
+                    let mut rows = vec![f32::NAN; len];
+                    env.write_grid(agent, &mut rows);
+                    rows
+                })
+                .collect();
+            while !env.is_done() {
+                let actions: Vec<Action> =
+                    (0..n).map(|_| Action::ALL[rng.random_range(0..5)]).collect();
+                env.step(&actions);
+                for (agent, kept) in kept.iter_mut().enumerate() {
+                    env.write_grid_changing(agent, kept);
+                    let mut whole = vec![f32::NAN; len];
+                    env.write_grid(agent, &mut whole);
+                    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(kept), bits(&whole), "case {case}, t {}", env.t());
+                }
             }
         }
     }

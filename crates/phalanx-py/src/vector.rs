@@ -1,7 +1,9 @@
 //! The vectorised environment for Python: `E` environments of one setting stepped in one
-//! call, in parallel on the rayon pool with the GIL released, their observations, rewards,
-//! flags and infos written straight into NumPy arrays that Python holds (nothing is copied or
-//! allocated per step, no Python object is made per agent).
+//! call, with the GIL released, on the calling thread (and, with `num_threads` above one,
+//! helper threads), their observations, rewards, flags and infos written straight into NumPy
+//! arrays that Python holds (nothing is copied, no Python object is made per agent, and
+//! nothing is allocated per step on one thread; on more, one list of a few blocks and a task
+//! per helper per call).
 //!
 //! Arrays, allocated once, `E` environments of `N` agents, `F` the field of view:
 //! observations `grid [E, N, 4, F, F]` f32, `vector [E, N, 3]` f32, `action_mask [E, N, 5]`
@@ -18,6 +20,7 @@
 //! the observations are always those to act on.
 
 use std::path::PathBuf;
+use std::sync::{Mutex, PoisonError};
 
 use numpy::{
     PyArray1, PyArray2, PyArray3, PyArray5, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -52,7 +55,7 @@ impl Slot {
             .map_err(|err| format!("seed {seed}: {}", crate::message(&err)))?;
         self.instance = Some(instance);
         self.seed = seed;
-        observe(&mut self.env, spec.task, obs);
+        observe(&mut self.env, spec.task, obs, true);
         Ok(())
     }
 }
@@ -121,8 +124,8 @@ impl<'a> StepRows<'a> {
 pub(crate) struct VecWorld {
     slots: Vec<Slot>,
     spec: Spec,
-    /// A pool of its own when a thread count was given, else rayon's global pool.
-    pool: Option<rayon::ThreadPool>,
+    /// The threads that step the environments.
+    threads: Threads,
     /// `[E, N, 4, F, F]`.
     #[pyo3(get)]
     grid: Py<PyArray5<f32>>,
@@ -191,8 +194,10 @@ fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
 impl VecWorld {
     /// `num_envs` environments of `task` on generated `size × size` maps (obstacle `density`,
     /// teams of `agents`) or on the instance file `instance`, with a `fov × fov` view; the
-    /// meta task weighs `L_f` by `formation_weight`; `num_threads` steps them on a pool of
-    /// that many threads (`None`: rayon's global pool, `RAYON_NUM_THREADS` or one per core).
+    /// meta task weighs `L_f` by `formation_weight`; `num_threads` steps them on that many
+    /// threads, the calling one and helpers of a rayon pool of the vector's own (`None`: as
+    /// many as rayon's global pool has, `RAYON_NUM_THREADS` or one per core, its helpers
+    /// that pool's; `1`: the calling thread alone).
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments")]
     #[pyo3(signature = (num_envs, size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None, num_threads = None))]
@@ -216,16 +221,7 @@ impl VecWorld {
         if n == 0 {
             return Err(bad("an instance without agents"));
         }
-        let pool = match num_threads {
-            Some(0) => return Err(bad("num_threads 0: at least one thread")),
-            Some(threads) => Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .map_err(|err| bad(format!("num_threads {threads}: {err}")))?,
-            ),
-            None => None,
-        };
+        let threads = Threads::new(num_threads)?;
         let mut slots = Vec::with_capacity(num_envs);
         for _ in 0..num_envs {
             slots.push(Slot {
@@ -239,7 +235,7 @@ impl VecWorld {
         Ok(VecWorld {
             slots,
             spec,
-            pool,
+            threads,
             grid: PyArray5::zeros(py, [e, n, CHANNELS, f, f], false).unbind(),
             vector: PyArray3::zeros(py, [e, n, VECTOR_LEN], false).unbind(),
             action_mask: PyArray3::zeros(py, [e, n, N_ACTIONS], false).unbind(),
@@ -327,26 +323,24 @@ impl VecWorld {
             rank: slice(&mut rank),
         };
         let seed_out = slice(&mut seed);
-        let (spec, slots, pool) = (&self.spec, &mut self.slots, self.pool.as_ref());
+        let (spec, slots, threads) = (&self.spec, &mut self.slots, &self.threads);
         let n = spec.n_agents;
         py.detach(|| {
-            in_pool(pool, || {
-                let start = |(index, slot): (usize, &mut Slot), obs: ObsRows<'_>, out: &mut u64| {
-                    let seed = seeds.as_ref().map_or(slot.seed.wrapping_add(1), |s| s[index]);
-                    *out = seed;
-                    slot.start(spec, seed, obs).map_err(|message| format!("env {index}: {message}"))
-                };
-                for_each_env(slots, (obs, seed_out), n, &|slots, (obs, seed_out), first| {
-                    let mut rest = (obs, seed_out);
-                    for (k, slot) in slots.iter_mut().enumerate() {
-                        let (obs, seed_out) = rest;
-                        let (one, obs) = obs.split_at(n);
-                        let (out, seed_out) = seed_out.split_at_mut(1);
-                        rest = (obs, seed_out);
-                        start((first + k, slot), one, &mut out[0])?;
-                    }
-                    Ok(())
-                })
+            let start = |(index, slot): (usize, &mut Slot), obs: ObsRows<'_>, out: &mut u64| {
+                let seed = seeds.as_ref().map_or(slot.seed.wrapping_add(1), |s| s[index]);
+                *out = seed;
+                slot.start(spec, seed, obs).map_err(|message| format!("env {index}: {message}"))
+            };
+            for_each_env(threads, slots, (obs, seed_out), n, &|slots, (obs, seed_out), first| {
+                let mut rest = (obs, seed_out);
+                for (k, slot) in slots.iter_mut().enumerate() {
+                    let (obs, seed_out) = rest;
+                    let (one, obs) = obs.split_at(n);
+                    let (out, seed_out) = seed_out.split_at_mut(1);
+                    rest = (obs, seed_out);
+                    start((first + k, slot), one, &mut out[0])?;
+                }
+                Ok(())
             })
         })
         .map_err(bad)?;
@@ -425,20 +419,18 @@ impl VecWorld {
             formation_loss: slice(&mut formation_loss),
             seed: slice(&mut seed),
         };
-        let (spec, slots, pool) = (&self.spec, &mut self.slots, self.pool.as_ref());
+        let (spec, slots, threads) = (&self.spec, &mut self.slots, &self.threads);
         py.detach(|| {
-            in_pool(pool, || {
-                for_each_env(slots, rows, n, &|slots, rows, first| {
-                    let mut rest = rows;
-                    for (k, slot) in slots.iter_mut().enumerate() {
-                        let (one, more) = rest.split_at(1, n);
-                        rest = more;
-                        let at = (first + k) * n;
-                        step_one(spec, slot, &actions[at..at + n], one)
-                            .map_err(|message| format!("env {}: {message}", first + k))?;
-                    }
-                    Ok(())
-                })
+            for_each_env(threads, slots, rows, n, &|slots, rows, first| {
+                let mut rest = rows;
+                for (k, slot) in slots.iter_mut().enumerate() {
+                    let (one, more) = rest.split_at(1, n);
+                    rest = more;
+                    let at = (first + k) * n;
+                    step_one(spec, slot, &actions[at..at + n], one)
+                        .map_err(|message| format!("env {}: {message}", first + k))?;
+                }
+                Ok(())
             })
         })
         .map_err(bad)
@@ -474,21 +466,51 @@ fn step_one(
     out.truncated.fill(truncated);
     out.ended[0] = terminated || truncated;
     if terminated || truncated {
-        observe(&mut slot.env, spec.task, out.last);
+        observe(&mut slot.env, spec.task, out.last, true);
         let next = slot.seed.wrapping_add(1);
         out.seed[0] = next;
         slot.start(spec, next, out.obs)
     } else {
-        observe(&mut slot.env, spec.task, out.obs);
+        // The rows hold this episode's last observation, its formation channel included.
+        observe(&mut slot.env, spec.task, out.obs, false);
         Ok(())
     }
 }
 
-/// Runs `work` on `pool`, or on rayon's global pool.
-fn in_pool<T: Send>(pool: Option<&rayon::ThreadPool>, work: impl FnOnce() -> T + Send) -> T {
-    match pool {
-        Some(pool) => pool.install(work),
-        None => work(),
+/// Where the environments are stepped: on the calling thread alone, or on it and the
+/// helper threads of a rayon pool.
+enum Threads {
+    /// The calling thread only (`num_threads=1`): no hand-over to another thread per call.
+    Caller,
+    /// The calling thread and `num_threads - 1` helpers of a pool of this vector's own.
+    Pool(rayon::ThreadPool, usize),
+    /// The calling thread and helpers of rayon's global pool, as many threads in all as the
+    /// global pool has.
+    Global,
+}
+
+impl Threads {
+    /// `num_threads` threads in all (`None`: as many as rayon's global pool has).
+    fn new(num_threads: Option<usize>) -> PyResult<Threads> {
+        match num_threads {
+            Some(0) => Err(bad("num_threads 0: at least one thread")),
+            Some(1) => Ok(Threads::Caller),
+            Some(threads) => rayon::ThreadPoolBuilder::new()
+                .num_threads(threads - 1)
+                .build()
+                .map(|pool| Threads::Pool(pool, threads))
+                .map_err(|err| bad(format!("num_threads {threads}: {err}"))),
+            None => Ok(Threads::Global),
+        }
+    }
+
+    /// Threads in all, the calling one included.
+    fn count(&self) -> usize {
+        match self {
+            Threads::Caller => 1,
+            Threads::Pool(_, threads) => *threads,
+            Threads::Global => rayon::current_num_threads(),
+        }
     }
 }
 
@@ -511,40 +533,83 @@ impl Rows for (ObsRows<'_>, &mut [u64]) {
     }
 }
 
+/// A block of consecutive environments with their rows and the index of the first, before
+/// a thread takes it, then its outcome.
+enum Block<'a, R> {
+    Pending(&'a mut [Slot], R, usize),
+    Taken,
+    Done(Result<(), String>),
+}
+
 /// Runs `work` on blocks of consecutive environments with their rows (and the index of the
-/// block's first environment), halving the blocks in parallel with `rayon::join` down to
-/// about eight blocks per thread; the first error by environment index wins, so the outcome
-/// is the same on any thread count.
+/// block's first environment): on the calling thread alone, or cut into about four blocks
+/// per thread that the calling thread and the helpers take in turn (a thread that the
+/// machine's load holds back takes fewer). Every environment is stepped by exactly one call
+/// and depends on nothing else, and the first error by environment index wins, so the
+/// outcome is the same on any thread count.
 fn for_each_env<R: Rows>(
+    threads: &Threads,
     slots: &mut [Slot],
     rows: R,
     n_agents: usize,
     work: &(impl Fn(&mut [Slot], R, usize) -> Result<(), String> + Sync),
 ) -> Result<(), String> {
-    let threads = rayon::current_num_threads();
-    let grain = (slots.len() / (8 * threads)).max(SERIAL_BELOW);
-    fn split<R: Rows>(
-        slots: &mut [Slot],
-        rows: R,
-        first: usize,
-        n_agents: usize,
-        grain: usize,
-        work: &(impl Fn(&mut [Slot], R, usize) -> Result<(), String> + Sync),
-    ) -> Result<(), String> {
-        if slots.len() <= grain {
-            return work(slots, rows, first);
-        }
-        let mid = slots.len() / 2;
-        let (left, right) = slots.split_at_mut(mid);
-        let (left_rows, right_rows) = rows.split_envs(mid, n_agents);
-        let (a, b) = rayon::join(
-            || split(left, left_rows, first, n_agents, grain, work),
-            || split(right, right_rows, first + mid, n_agents, grain, work),
-        );
-        a.and(b)
-    }
-    if threads == 1 {
+    let count = threads.count();
+    if count == 1 || slots.len() < 2 * SERIAL_BELOW {
         return work(slots, rows, 0);
     }
-    split(slots, rows, 0, n_agents, grain, work)
+    let size = slots.len().div_ceil(4 * count).max(SERIAL_BELOW);
+    let mut blocks = Vec::with_capacity(slots.len().div_ceil(size));
+    let (mut slots, mut rows, mut first) = (slots, rows, 0);
+    while !slots.is_empty() {
+        let take = size.min(slots.len());
+        let (block, rest) = slots.split_at_mut(take);
+        let (block_rows, rest_rows) = rows.split_envs(take, n_agents);
+        blocks.push(Mutex::new(Block::Pending(block, block_rows, first)));
+        (slots, rows, first) = (rest, rest_rows, first + take);
+    }
+    // The blocks not yet taken, `front..back`: the calling thread takes them from the front,
+    // the helpers from the back, so that each thread tends to step the same environments
+    // call after call (their maps stay in its core's cache) while a thread that the machine
+    // holds back leaves its share to the others.
+    let untaken = Mutex::new(0..blocks.len());
+    let drain = |from_back: bool| {
+        loop {
+            let k = {
+                let mut untaken = untaken.lock().unwrap_or_else(PoisonError::into_inner);
+                let k = if from_back { untaken.next_back() } else { untaken.next() };
+                let Some(k) = k else { return };
+                k
+            };
+            let mut block = blocks[k].lock().unwrap_or_else(PoisonError::into_inner);
+            if let Block::Pending(slots, rows, first) = std::mem::replace(&mut *block, Block::Taken)
+            {
+                *block = Block::Done(work(slots, rows, first));
+            }
+        }
+    };
+    let helpers = (count - 1).min(blocks.len() - 1);
+    match threads {
+        Threads::Pool(pool, _) => pool.in_place_scope(|scope| spread(scope, helpers, &drain)),
+        Threads::Global | Threads::Caller => {
+            rayon::in_place_scope(|scope| spread(scope, helpers, &drain));
+        }
+    }
+    for block in blocks {
+        match block.into_inner().unwrap_or_else(PoisonError::into_inner) {
+            Block::Done(Ok(())) => {}
+            Block::Done(Err(message)) => return Err(message),
+            Block::Pending(..) | Block::Taken => unreachable!("every block is run"),
+        }
+    }
+    Ok(())
+}
+
+/// Runs `drain(true)` (from the back) on `helpers` threads of `scope`'s pool and
+/// `drain(false)` on the calling thread.
+fn spread<'s>(scope: &rayon::Scope<'s>, helpers: usize, drain: &'s (impl Fn(bool) + Sync)) {
+    for _ in 0..helpers {
+        scope.spawn(move |_| drain(true));
+    }
+    drain(false);
 }

@@ -151,10 +151,11 @@ pub(crate) struct ObsRows<'a> {
 impl<'a> ObsRows<'a> {
     /// The rows of the first `agents` agents and those of the rest.
     pub(crate) fn split_at(self, agents: usize) -> (ObsRows<'a>, ObsRows<'a>) {
-        let per_agent = |len: usize| len / self.rank.len().max(1) * agents;
-        let (grid, grid_rest) = self.grid.split_at_mut(per_agent(self.grid.len()));
-        let (vector, vector_rest) = self.vector.split_at_mut(per_agent(self.vector.len()));
-        let (mask, mask_rest) = self.mask.split_at_mut(per_agent(self.mask.len()));
+        // One division (the grid's length per agent), the other rows' lengths are constants.
+        let grid_len = self.grid.len() / self.rank.len().max(1);
+        let (grid, grid_rest) = self.grid.split_at_mut(grid_len * agents);
+        let (vector, vector_rest) = self.vector.split_at_mut(VECTOR_LEN * agents);
+        let (mask, mask_rest) = self.mask.split_at_mut(N_ACTIONS * agents);
         let (rank, rank_rest) = self.rank.split_at_mut(agents);
         (
             ObsRows { grid, vector, mask, rank },
@@ -165,13 +166,19 @@ impl<'a> ObsRows<'a> {
 
 /// Writes every agent's observation into `out` (channels, goal vector, the place vector when
 /// the environment writes it, the task's mask), then starts the step's turns by the task's
-/// leader rule and writes each agent's rank.
-pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>) {
+/// leader rule and writes each agent's rank. The formation channel, the same throughout an
+/// episode, is written only when `formation` (rows that hold an earlier observation of the
+/// same episode keep theirs).
+pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>, formation: bool) {
     let clip = task.clip();
     let grid_len = out.grid.len() / out.rank.len().max(1);
     for (agent, out) in out.grid.chunks_exact_mut(grid_len).enumerate() {
         env.prefetch_view(agent + Env::PREFETCH_AHEAD);
-        env.write_grid(agent, out);
+        if formation {
+            env.write_grid(agent, out);
+        } else {
+            env.write_grid_changing(agent, out);
+        }
     }
     let width = env.obs_shape().env_vec;
     let front = env.config().place_vector.then(|| env.front());
@@ -625,7 +632,7 @@ impl World {
             mask: mask.as_slice_mut().expect(contiguous),
             rank: rank.as_slice_mut().expect(contiguous),
         };
-        observe(&mut self.env, self.spec.task, rows);
+        observe(&mut self.env, self.spec.task, rows, true);
         if std::mem::take(&mut self.message_written) {
             fill(py, &self.message, |message| message.fill(0.0));
         }

@@ -451,3 +451,33 @@ def test_a_trained_imitation_student_plays_in_python_as_phalanx_solve(instance_f
     horizon = max(map(len, paths + played))
     pad = lambda ps: [p + [p[-1]] * (horizon - len(p)) for p in ps]  # noqa: E731
     assert pad(played) == pad(paths)
+
+
+def test_vector_env_is_the_same_on_any_thread_count_with_uneven_blocks():
+    # 13 environments cut into blocks of two and one (three threads: the caller from the
+    # front, two helpers from the back), the global pool's count, and one thread: the same
+    # arrays, the ended episodes' last observations and the seeds included.
+    vecs = [phalanx.vector_env(13, num_threads=t, seed=8, **VECTOR) for t in (1, 3, None)]
+    for vec in vecs:
+        vec.reset()
+    rng = np.random.default_rng(2)
+    ended = 0
+    for _ in range(60):
+        actions = rng.integers(0, 5, size=(13, 3))
+        outs = [vec.step(actions) for vec in vecs]
+        obs, rewards, terminations, truncations, infos = outs[0]
+        ended += int(infos["_final_obs"].sum())
+        for other in outs[1:]:
+            for key in obs:
+                np.testing.assert_array_equal(obs[key], other[0][key], err_msg=key)
+            np.testing.assert_array_equal(rewards, other[1])
+            np.testing.assert_array_equal(terminations, other[2])
+            np.testing.assert_array_equal(truncations, other[3])
+            np.testing.assert_array_equal(infos["seed"], other[4]["seed"])
+            np.testing.assert_array_equal(infos["_final_obs"], other[4]["_final_obs"])
+            rows = infos["_final_obs"]
+            for key in infos["final_obs"]:
+                np.testing.assert_array_equal(
+                    infos["final_obs"][key][rows], other[4]["final_obs"][key][rows], err_msg=key
+                )
+    assert ended > 0, "no episode ended: the auto-reset was not compared"

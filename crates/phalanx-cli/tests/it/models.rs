@@ -91,11 +91,10 @@ fn every_shipped_configuration_trains_as_it_is() {
 /// instance per 20² row; the network, the learner and the schedule's fields stay.
 fn shrink_imitation(config: &mut Value) {
     let small_pool = serde_json::json!({"n_maps": 2, "size": 16});
-    let data = &mut config["data"];
-    data["episodes"] = Value::from(4);
-    data["agents"] = Value::from(vec![3, 4]);
-    for pool in [&mut data["pool"], &mut config["round_pool"]] {
-        if pool.is_object() {
+    config["data"]["episodes"] = Value::from(4);
+    config["data"]["agents"] = Value::from(vec![3, 4]);
+    for pool in ["/data/pool", "/round_pool"] {
+        if let Some(pool) = config.pointer_mut(pool).filter(|it| it.is_object()) {
             for (key, value) in small_pool.as_object().unwrap() {
                 pool[key] = value.clone();
             }

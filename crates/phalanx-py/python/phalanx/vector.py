@@ -185,6 +185,7 @@ def _views(grid, vector, mask, rank, n: int) -> dict[str, np.ndarray]:
 def vector_env(num_envs: int, **kwargs: Any) -> VectorEnv:
     """A ``VectorEnv`` of ``num_envs`` environments with ``parallel_env``'s settings
     (``size``, ``density``, ``agents``, ``task``, ``fov``, ``formation_weight``, ``seed``,
-    ``instance``; no rendering) and ``num_threads`` (``None``: rayon's pool,
-    ``RAYON_NUM_THREADS`` or one thread per core)."""
+    ``instance``; no rendering) and ``num_threads``, the threads that step them, the
+    calling one included (``1``: the calling thread alone; ``None``: as many as rayon's
+    global pool has, ``RAYON_NUM_THREADS`` or one thread per core)."""
     return VectorEnv(num_envs, **kwargs)
