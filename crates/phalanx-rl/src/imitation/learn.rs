@@ -95,12 +95,27 @@ impl Default for ImitationConfig {
 }
 
 impl ImitationConfig {
-    /// Parses a settings file's JSON over the defaults.
+    /// Parses a settings file's JSON over the defaults. A `data` object given in part is
+    /// read over the student's default data (teams of 3 to 8, 1500 episodes), field by
+    /// field, not over the data settings' own defaults: `{"data": {"seed": 1}}` changes the
+    /// seed only.
     ///
     /// # Errors
     /// When the JSON does not parse (naming the line) or a value is out of range.
     pub fn from_json(text: &str) -> Result<ImitationConfig, String> {
-        let config: ImitationConfig = serde_json::from_str(text).map_err(|err| format!("{err}"))?;
+        // Parsed as it is first, so that a syntax error or an unknown field names its line.
+        let mut config: ImitationConfig =
+            serde_json::from_str(text).map_err(|err| format!("{err}"))?;
+        let given: serde_json::Value =
+            serde_json::from_str(text).map_err(|err| format!("{err}"))?;
+        if let Some(fields) = given.get("data").and_then(|it| it.as_object()) {
+            let mut data = serde_json::to_value(ImitationConfig::default().data)
+                .map_err(|err| format!("data: {err}"))?;
+            for (key, value) in fields {
+                data[key] = value.clone();
+            }
+            config.data = serde_json::from_value(data).map_err(|err| format!("data: {err}"))?;
+        }
         config.check()?;
         Ok(config)
     }
@@ -376,6 +391,19 @@ mod tests {
         assert_ne!(round.seed, config.round_data(1, 7).seed);
         assert_eq!(round.student.unwrap().round, 2);
         config.check().unwrap();
+    }
+
+    #[test]
+    fn a_partial_data_object_keeps_the_students_defaults() {
+        let config = ImitationConfig::from_json(r#"{"data": {"seed": 7}}"#).unwrap();
+        let default = ImitationConfig::default();
+        assert_eq!(config.data, DataConfig { seed: 7, ..default.data.clone() });
+        assert_eq!(config.data.agents, [3, 4, 5, 6, 7, 8]);
+        let given = r#"{"data": {"agents": [3], "episodes": 9}}"#;
+        let config = ImitationConfig::from_json(given).unwrap();
+        assert_eq!((config.data.agents, config.data.episodes), (vec![3], 9));
+        assert_eq!(config.data.env, default.data.env);
+        assert!(ImitationConfig::from_json(r#"{"data": {"sed": 7}}"#).unwrap_err().contains("sed"));
     }
 
     #[test]
