@@ -1,7 +1,10 @@
-//! Criterion benchmarks of the core: BFS distance maps and plan validation with metrics.
+//! Criterion benchmarks of the core: BFS distance maps, plan validation with metrics and the
+//! formation loss.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use phalanx_core::{Cell, DistanceMap, Grid, Instance, Plan, PlanMetrics, validate};
+use phalanx_core::{
+    Cell, DistanceMap, Grid, Instance, Plan, PlanMetrics, formation_loss, validate,
+};
 
 /// A 1024×1024 grid with ~15 % obstacles in a fixed pseudo-random pattern (no generator
 /// dependency here; the generator has its own benchmark).
@@ -69,5 +72,20 @@ fn validate_2000(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bfs, validate_2000);
+/// The loss of a team of 3 and of 25 out of formation (every agent one cell off its place).
+fn loss(c: &mut Criterion) {
+    for n in [3_i32, 25] {
+        let goals: Vec<Cell> = (0..n).map(|i| Cell::new(10 + i % 5, 10 + i / 5)).collect();
+        let positions: Vec<Cell> = goals
+            .iter()
+            .enumerate()
+            .map(|(i, g)| Cell::new(g.x + 30 + (i % 2) as i32, g.y + 7))
+            .collect();
+        c.bench_function(&format!("formation_loss/{n}"), |b| {
+            b.iter(|| formation_loss(std::hint::black_box(&positions), &goals))
+        });
+    }
+}
+
+criterion_group!(benches, bfs, validate_2000, loss);
 criterion_main!(benches);

@@ -105,7 +105,10 @@ impl Fit {
             num += u * y - v * x;
             den += u * x + v * y;
         }
-        let (sin, cos) = num.atan2(den).sin_cos();
+        // `(sin θ, cos θ)` of `θ = atan2(num, den)` without the trigonometry: the unit vector
+        // along `(den, num)`. With both sums 0 every angle fits equally; `θ = 0` is taken.
+        let r = num.hypot(den);
+        let (sin, cos) = if r > 0.0 { (num / r, den / r) } else { (0.0, 1.0) };
         Some(Fit { cp, cg, sin, cos })
     }
 

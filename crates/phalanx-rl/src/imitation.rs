@@ -19,6 +19,8 @@
 //!   labels every state it reaches; [`learn`] trains the student on the data (cloning, then
 //!   DAgger rounds).
 
+use std::collections::HashMap;
+
 use phalanx_core::{Action, Cell, Instance};
 use phalanx_env::{Env, EnvConfig, EnvError, LeaderRule, ObsBuffers, PoolConfig, Task, TrainPool};
 use phalanx_plan::expert::{Expert, ExpertConfig, ExpertPlanner, ExpertStats};
@@ -123,6 +125,10 @@ pub struct StudentRollouts {
     /// Probability, per agent and step, of a uniformly random action instead of the
     /// student's greedy one.
     pub epsilon: f64,
+    /// The rollout ends ([`EpisodeEnd::Stalled`]) when the team reaches one joint state this
+    /// many times; 0: never (the data files written before 2026-12-05).
+    #[serde(default)]
+    pub stall_visits: u32,
 }
 
 impl Default for DataConfig {
@@ -166,6 +172,10 @@ pub enum EpisodeEnd {
     Truncated,
     /// The expert had no plan from the last state (the state has no step recorded).
     ExpertFailed,
+    /// A student's rollout came back to one joint state [`StudentRollouts::stall_visits`]
+    /// times (the team stood still or oscillated): the states of a stall are labelled, its
+    /// repetitions are not (each would cost a re-plan and teach nothing new).
+    Stalled,
 }
 
 /// One expert episode: the instance and its steps.
@@ -218,7 +228,7 @@ pub fn rollout(
     noise: f64,
     rng: &mut ChaCha8Rng,
 ) -> Result<(ExpertEpisode, ExpertStats), EnvError> {
-    rollout_with(env, instance, expert, rule, &mut |_env, _order, labels, taken| {
+    rollout_with(env, instance, expert, rule, 0, &mut |_env, _order, labels, taken| {
         taken.copy_from_slice(labels);
         if noise > 0.0 {
             for a in taken.iter_mut() {
@@ -236,7 +246,8 @@ pub type Actor<'a> = dyn FnMut(&Env, &[u16], &[Action], &mut [Action]) + 'a;
 
 /// Plays one episode of `instance` in `env`, the joint action at each step chosen by `act`,
 /// the expert's answer at every state reached recorded as the labels; the acting order is
-/// `rule`'s. Ends as [`rollout`] does.
+/// `rule`'s. Ends as [`rollout`] does, and also ([`EpisodeEnd::Stalled`]) when the team
+/// reaches one joint state the `stall_visits`-th time (0: never).
 ///
 /// # Errors
 /// If the environment refuses the instance.
@@ -245,6 +256,7 @@ pub fn rollout_with(
     instance: &Instance,
     expert: &ExpertConfig,
     rule: LeaderRule,
+    stall_visits: u32,
     act: &mut Actor<'_>,
 ) -> Result<(ExpertEpisode, ExpertStats), EnvError> {
     env.reset(instance)?;
@@ -252,10 +264,19 @@ pub fn rollout_with(
     let mut expert = Expert::new(instance, expert);
     let mut steps = Vec::new();
     let mut labels = vec![Action::Wait; n];
+    // Visits of each joint state (looked up only, never iterated).
+    let mut visits: HashMap<Vec<Cell>, u32> = HashMap::new();
     let end = loop {
         let positions = env.positions().to_vec();
         if positions == instance.goals() {
             break EpisodeEnd::Reached;
+        }
+        if stall_visits > 0 {
+            let seen = visits.entry(positions.clone()).or_insert(0);
+            *seen += 1;
+            if *seen >= stall_visits {
+                break EpisodeEnd::Stalled;
+            }
         }
         if expert.act(&positions, &mut labels).is_err() {
             break EpisodeEnd::ExpertFailed;
@@ -377,7 +398,8 @@ pub fn generate_with(
                                     *a = Action::ALL[usize::from(c)];
                                 }
                             };
-                        rollout_with(&mut env, &instance, &expert, rule, &mut act)
+                        let stall = config.student.as_ref().map_or(0, |it| it.stall_visits);
+                        rollout_with(&mut env, &instance, &expert, rule, stall, &mut act)
                     }
                     _ => rollout(&mut env, &instance, &expert, rule, config.noise, &mut rng),
                 };

@@ -241,6 +241,7 @@ fn encode_episode(e: &ExpertEpisode, out: &mut Vec<u8>) {
         EpisodeEnd::Reached => 0,
         EpisodeEnd::Truncated => 1,
         EpisodeEnd::ExpertFailed => 2,
+        EpisodeEnd::Stalled => 3,
     });
     out.extend_from_slice(&e.replans.to_le_bytes());
     let mut bits = vec![0u8; grid.n_cells().div_ceil(8)];
@@ -347,7 +348,8 @@ fn decode_episode(r: &mut Reader<'_>) -> Result<ExpertEpisode, DataError> {
         0 => EpisodeEnd::Reached,
         1 => EpisodeEnd::Truncated,
         2 => EpisodeEnd::ExpertFailed,
-        code => return Err(r.malformed(format!("end code {code} (0 to 2)"))),
+        3 => EpisodeEnd::Stalled,
+        code => return Err(r.malformed(format!("end code {code} (0 to 3)"))),
     };
     let replans = r.u32()?;
     if n == 0 || !(1..=u32::from(u16::MAX)).contains(&width) || !(1..=65_535).contains(&height) {

@@ -54,6 +54,11 @@ pub struct ImitationConfig {
     pub round_updates: u64,
     /// The student's random-action rate in its DAgger rollouts.
     pub round_epsilon: f64,
+    /// A DAgger rollout ends when the team reaches one joint state this many times (it
+    /// stands still or oscillates; 0: never). The stall's states are labelled once or twice
+    /// each; without the cut, a stuck student costs the expert a re-plan at every step up to
+    /// the step limit (measured: 26–48 minutes per 150 episodes on 64² maps).
+    pub round_stall_visits: u32,
     /// A checkpoint every this many updates (and at the end of every round).
     pub checkpoint_every: u64,
     /// Start from this checkpoint's or policy file's network.
@@ -85,6 +90,7 @@ impl Default for ImitationConfig {
             round_pool: None,
             round_updates: 1500,
             round_epsilon: 0.0,
+            round_stall_visits: 3,
             checkpoint_every: 250,
             init_from: None,
             validation_maps: 10,
@@ -206,7 +212,12 @@ impl ImitationConfig {
             pool: self.round_pool.clone().unwrap_or_else(|| self.data.pool.clone()),
             episodes: self.round_episodes,
             seed: round_seed(self.data.seed, round),
-            student: Some(StudentRollouts { round, network, epsilon: self.round_epsilon }),
+            student: Some(StudentRollouts {
+                round,
+                network,
+                epsilon: self.round_epsilon,
+                stall_visits: self.round_stall_visits,
+            }),
             ..self.data.clone()
         }
     }

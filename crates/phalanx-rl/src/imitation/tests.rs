@@ -52,6 +52,25 @@ fn noisy_episodes_leave_the_plan_and_the_expert_re_plans() {
 }
 
 #[test]
+fn a_student_that_stands_still_ends_its_rollout_as_stalled() {
+    let config = small(0.0, 1);
+    let pool = TrainPool::new(&config.pool).unwrap();
+    let instance = pool.sample_episode(3, 0.0, &mut episode_rng(1, 0));
+    let expert = config.expert.config(config.node_limit);
+    let mut env = Env::new(config.env.clone()).unwrap();
+    // Standing still: the start is reached a third time before the third step.
+    let mut wait = |_: &Env, _: &[u16], _: &[Action], taken: &mut [Action]| {
+        taken.fill(Action::Wait);
+    };
+    let rule = LeaderRule::PathFinding;
+    let (episode, _) = rollout_with(&mut env, &instance, &expert, rule, 3, &mut wait).unwrap();
+    assert_eq!((episode.end, episode.steps.len()), (EpisodeEnd::Stalled, 2));
+    // Without the cut the same student stands until the step limit.
+    let (episode, _) = rollout_with(&mut env, &instance, &expert, rule, 0, &mut wait).unwrap();
+    assert_eq!(episode.end, EpisodeEnd::Truncated);
+}
+
+#[test]
 fn messages_are_the_expert_actions_of_the_agents_ranked_before() {
     let config = small(0.1, 3);
     let data = generate(&config, &|_| {}).unwrap().0;
