@@ -19,7 +19,7 @@
 //!   labels every state it reaches; [`learn`] trains the student on the data (cloning, then
 //!   DAgger rounds).
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 
 use phalanx_core::{Action, Cell, Instance};
 use phalanx_env::{Env, EnvConfig, EnvError, LeaderRule, ObsBuffers, PoolConfig, Task, TrainPool};
@@ -264,8 +264,8 @@ pub fn rollout_with(
     let mut expert = Expert::new(instance, expert);
     let mut steps = Vec::new();
     let mut labels = vec![Action::Wait; n];
-    // Visits of each joint state (looked up only, never iterated).
-    let mut visits: HashMap<Vec<Cell>, u32> = HashMap::new();
+    // Visits of each joint state.
+    let mut visits: BTreeMap<Vec<Cell>, u32> = BTreeMap::new();
     let end = loop {
         let positions = env.positions().to_vec();
         if positions == instance.goals() {
