@@ -19,7 +19,7 @@ use phalanx_env::obs::VECTOR_LEN;
 use phalanx_env::{EnvConfig, LeaderRule, ObsBuffers, PoolConfig, Task, TaskEnv};
 use serde::{Deserialize, Serialize};
 
-use super::{DataConfig, DataError, Dataset, ExpertEpisode, StudentRollouts};
+use super::{DataConfig, DataError, Dataset, ExpertChoice, ExpertEpisode, StudentRollouts};
 use crate::learner::{Learner, LearnerConfig};
 use crate::net::QNetConfig;
 use crate::replay::{Episode, SequenceMode};
@@ -50,6 +50,11 @@ pub struct ImitationConfig {
     /// The training pool of the DAgger rounds' episodes (`None`: the cloning data's,
     /// `data.pool`); larger maps than cloning's let the student meet long routes.
     pub round_pool: Option<PoolConfig>,
+    /// The expert that labels the DAgger rounds' states (`None`: the cloning data's,
+    /// `data.expert`). The student leaves the expert's plan at most steps, so the expert
+    /// re-plans at most steps: `swarm` costs 10–100× less per plan than `swarm-jsa`
+    /// (docs/imitation.md, *The expert alone*).
+    pub round_expert: Option<ExpertChoice>,
     /// Updates after each DAgger round's data.
     pub round_updates: u64,
     /// The student's random-action rate in its DAgger rollouts.
@@ -88,6 +93,7 @@ impl Default for ImitationConfig {
             rounds: 4,
             round_episodes: 300,
             round_pool: None,
+            round_expert: None,
             round_updates: 1500,
             round_epsilon: 0.0,
             round_stall_visits: 3,
@@ -210,6 +216,7 @@ impl ImitationConfig {
     pub fn round_data(&self, round: u32, network: u32) -> DataConfig {
         DataConfig {
             pool: self.round_pool.clone().unwrap_or_else(|| self.data.pool.clone()),
+            expert: self.round_expert.unwrap_or(self.data.expert),
             episodes: self.round_episodes,
             seed: round_seed(self.data.seed, round),
             student: Some(StudentRollouts {
@@ -401,12 +408,18 @@ mod tests {
         assert_ne!(round.seed, config.data.seed);
         assert_ne!(round.seed, config.round_data(1, 7).seed);
         assert_eq!(round.student.unwrap().round, 2);
+        assert_eq!(round.expert, config.data.expert);
+        let swarm = ImitationConfig { round_expert: Some(ExpertChoice::Swarm), ..config.clone() };
+        assert_eq!(swarm.round_data(2, 7).expert, ExpertChoice::Swarm);
+        assert_eq!(swarm.round_data(2, 7).student.unwrap().stall_visits, 3);
         config.check().unwrap();
     }
 
     #[test]
     fn a_partial_data_object_keeps_the_students_defaults() {
         let config = ImitationConfig::from_json(r#"{"data": {"seed": 7}}"#).unwrap();
+        let parsed = ImitationConfig::from_json(r#"{"round_expert": "swarm"}"#).unwrap();
+        assert_eq!(parsed.round_expert, Some(ExpertChoice::Swarm));
         let default = ImitationConfig::default();
         assert_eq!(config.data, DataConfig { seed: 7, ..default.data.clone() });
         assert_eq!(config.data.agents, [3, 4, 5, 6, 7, 8]);
