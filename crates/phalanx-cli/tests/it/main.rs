@@ -558,10 +558,11 @@ fn bench_quick_runs_every_row_and_method_and_resumes() {
     let text = std::fs::read_to_string(d.join("b/runs.jsonl")).unwrap();
     let records: Vec<serde_json::Value> =
         text.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    // The shipped meta policy (models/meta) and end-to-end baselines (models/e2e, models/ctce)
-    // join the planners and the low level.
-    let methods = ["cbs", "ecbs", "swarm", "jsa", "pathfinding", "leader", "hrl", "e2e", "ctce"];
-    // 7 rows × 2 instances × 9 methods, every plan valid.
+    // The shipped meta policy (models/meta), end-to-end baselines (models/e2e, models/ctce)
+    // and the planners' student (models/imitation) join the planners and the low level.
+    let methods =
+        ["cbs", "ecbs", "swarm", "jsa", "pathfinding", "leader", "hrl", "e2e", "ctce", "imitation"];
+    // 7 rows × 2 instances × 10 methods, every plan valid.
     assert_eq!(records.len(), 7 * 2 * methods.len());
     for r in &records {
         assert_ne!(r["run"]["outcome"], "invalid", "{r}");

@@ -73,9 +73,9 @@ fn the_demo_page_shows_every_animation_in_a_browser() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (table, _) = check(&phalanx(d, &["demo", "--out", "demo", "--rollouts", "1"]), 0);
-    // Eight runs; the planners solve both instances (a learned method's greedy rollout may
-    // stop short: its best rollout is drawn all the same).
-    assert_eq!(table.lines().take_while(|l| !l.is_empty()).count(), 1 + 8, "{table}");
+    // Ten runs (five methods, two instances); the planners solve both instances (a learned
+    // method's greedy rollout may stop short: its best rollout is drawn all the same).
+    assert_eq!(table.lines().take_while(|l| !l.is_empty()).count(), 1 + 10, "{table}");
     for planner in ["cbs", "swarm"] {
         let solved = table.lines().filter(|l| l.contains(&format!(" {planner} "))).count();
         let yes = table
@@ -86,22 +86,22 @@ fn the_demo_page_shows_every_animation_in_a_browser() {
     }
     let index = d.join("demo/index.html");
     let html = std::fs::read_to_string(&index).unwrap();
-    assert_eq!(html.matches("<svg ").count(), 8);
+    assert_eq!(html.matches("<svg ").count(), 10);
     for case in ["generated-32", "den312d"] {
-        // The shipped meta policy is the demo's hierarchy.
-        for method in ["hrl", "pathfinding", "cbs", "swarm"] {
+        // The shipped student and meta policy are the demo's learned methods.
+        for method in ["imitation", "hrl", "pathfinding", "cbs", "swarm"] {
             let gif = std::fs::read(d.join(format!("demo/{case}/{method}.gif"))).unwrap();
             assert_eq!(&gif[..6], b"GIF89a", "{case} {method}");
         }
     }
     let Some(browser) = chromium() else { return };
-    // The DOM after the page ran: eight pictures, each animated.
+    // The DOM after the page ran: ten pictures, each animated.
     let dom = headless(browser, d, &["--dump-dom"], &index);
     let dom = String::from_utf8_lossy(&dom.stdout);
-    assert_eq!(dom.matches("<figure class=\"run\"").count(), 8, "{}", &dom[..dom.len().min(500)]);
+    assert_eq!(dom.matches("<figure class=\"run\"").count(), 10, "{}", &dom[..dom.len().min(500)]);
     assert!(
         dom.matches("<animatetransform").count() + dom.matches("<animateTransform").count()
-            >= 8 * 6
+            >= 10 * 6
     );
     // The screenshot: the pictures are drawn (obstacles, agents), not a blank page.
     let shot = d.join("shot.png");
