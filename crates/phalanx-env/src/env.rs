@@ -752,22 +752,35 @@ impl Env {
         assert_eq!(out.n_agents, self.pos.len(), "buffers of another agent count");
         assert_eq!(out.shape, self.obs_shape(), "buffers of another shape");
         let shape = out.shape;
-        let front = self.config.place_vector.then(|| self.front());
-        for (i, ((grid, vector), mask)) in out
+        for (i, (grid, mask)) in out
             .grid
             .chunks_exact_mut(shape.grid_len())
-            .zip(out.vec.chunks_exact_mut(shape.env_vec))
             .zip(out.action_mask.chunks_exact_mut(N_ACTIONS))
             .enumerate()
         {
             self.prefetch_view(i + Env::PREFETCH_AHEAD);
             self.write_grid(i, grid);
-            let (goal, place) = vector.split_at_mut(VECTOR_LEN);
-            self.write_vector(i, goal);
-            if let Some(front) = front {
-                self.write_place_vector(i, front, place);
-            }
             self.write_mask(i, clip, mask);
+        }
+        self.write_vectors(&mut out.vec);
+    }
+
+    /// Writes every agent's vector into `out` (`[n_agents, env_vec]` of [`Env::obs_shape`]):
+    /// its goal vector ([`Env::write_vector`]), then with [`EnvConfig::place_vector`] the
+    /// vector towards its place on the agent in front ([`Env::write_place_vector`]).
+    ///
+    /// # Panics
+    /// If `out` has another length.
+    pub fn write_vectors(&self, out: &mut [f32]) {
+        let width = self.obs_shape().env_vec;
+        assert_eq!(out.len(), self.pos.len() * width, "vectors of another size");
+        let front = self.config.place_vector.then(|| self.front());
+        for (agent, vector) in out.chunks_exact_mut(width).enumerate() {
+            let (goal, place) = vector.split_at_mut(VECTOR_LEN);
+            self.write_vector(agent, goal);
+            if let Some(front) = front {
+                self.write_place_vector(agent, front, place);
+            }
         }
     }
 

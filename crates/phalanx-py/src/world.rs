@@ -15,7 +15,7 @@ use std::path::PathBuf;
 
 use numpy::{PyArray1, PyArray2, PyArray3, PyArray4, PyArrayMethods};
 use phalanx_core::{Action, Instance, Plan};
-use phalanx_env::obs::{CHANNELS, N_ACTIONS, VECTOR_LEN};
+use phalanx_env::obs::{CHANNELS, N_ACTIONS};
 use phalanx_env::{Env, EnvConfig, Task, formation_instance};
 use phalanx_gen::GenConfig;
 use phalanx_render::{Options, Scene};
@@ -139,8 +139,9 @@ pub(crate) fn check_formation_weight(formation_weight: f64) -> PyResult<()> {
     }
 }
 
-/// One environment's observation rows: `grid [N, 4, F, F]`, `vector [N, 3]`, `mask [N, 5]`
-/// and `rank [N]` of its `N` agents (or of several environments' agents, one after the other).
+/// One environment's observation rows: `grid [N, 4, F, F]`, `vector [N, 3]` (`[N, 6]` with the
+/// place vector), `mask [N, 5]` and `rank [N]` of its `N` agents (or of several environments'
+/// agents, one after the other).
 pub(crate) struct ObsRows<'a> {
     pub(crate) grid: &'a mut [f32],
     pub(crate) vector: &'a mut [f32],
@@ -151,10 +152,11 @@ pub(crate) struct ObsRows<'a> {
 impl<'a> ObsRows<'a> {
     /// The rows of the first `agents` agents and those of the rest.
     pub(crate) fn split_at(self, agents: usize) -> (ObsRows<'a>, ObsRows<'a>) {
-        // One division (the grid's length per agent), the other rows' lengths are constants.
-        let grid_len = self.grid.len() / self.rank.len().max(1);
-        let (grid, grid_rest) = self.grid.split_at_mut(grid_len * agents);
-        let (vector, vector_rest) = self.vector.split_at_mut(VECTOR_LEN * agents);
+        // The grid's and the vector's lengths per agent follow the environment's shape (the
+        // place vector makes the vector 6 long); the mask's is a constant.
+        let per_agent = |len: usize| len / self.rank.len().max(1) * agents;
+        let (grid, grid_rest) = self.grid.split_at_mut(per_agent(self.grid.len()));
+        let (vector, vector_rest) = self.vector.split_at_mut(per_agent(self.vector.len()));
         let (mask, mask_rest) = self.mask.split_at_mut(N_ACTIONS * agents);
         let (rank, rank_rest) = self.rank.split_at_mut(agents);
         (
@@ -180,15 +182,7 @@ pub(crate) fn observe(env: &mut Env, task: Task, out: ObsRows<'_>, formation: bo
             env.write_grid_changing(agent, out);
         }
     }
-    let width = env.obs_shape().env_vec;
-    let front = env.config().place_vector.then(|| env.front());
-    for (agent, out) in out.vector.chunks_exact_mut(width).enumerate() {
-        let (goal, place) = out.split_at_mut(VECTOR_LEN);
-        env.write_vector(agent, goal);
-        if let Some(front) = front {
-            env.write_place_vector(agent, front, place);
-        }
-    }
+    env.write_vectors(out.vector);
     let mut mask = [true; N_ACTIONS];
     for (agent, out) in out.mask.chunks_exact_mut(N_ACTIONS).enumerate() {
         env.write_mask(agent, clip, &mut mask);

@@ -350,7 +350,8 @@ pub fn generate_with(
     check_config(config)?;
     let pool = TrainPool::new(&config.pool).map_err(DataError::Pool)?;
     let probe = Env::new(config.env.clone()).map_err(DataError::Pool)?;
-    let epsilon = match (student, &config.student) {
+    // The student's random-action rate and stall cut, when a student moves the team.
+    let rollouts = match (student, &config.student) {
         (None, None) => None,
         (Some(policy), Some(rollouts)) => {
             let net = policy.config();
@@ -364,7 +365,7 @@ pub fn generate_with(
                     net.channels, net.fov, net.env_vec, net.n_actions, net.n_agents_max
                 )));
             }
-            Some(rollouts.epsilon)
+            Some((rollouts.epsilon, rollouts.stall_visits))
         }
         _ => return Err(DataError::Settings("student: rollouts need the student's policy".into())),
     };
@@ -382,8 +383,8 @@ pub fn generate_with(
                 let instance = pool.sample_episode(n_agents, config.wide_share, &mut rng);
                 let mut env = Env::new(config.env.clone()).expect("checked above");
                 let rule = config.leader_rule;
-                let played = match (student, epsilon) {
-                    (Some(policy), Some(epsilon)) => {
+                let played = match (student, rollouts) {
+                    (Some(policy), Some((epsilon, stall))) => {
                         let mut policy = policy.clone();
                         policy.reset();
                         let mut obs = ObsBuffers::new(n_agents, env.obs_shape());
@@ -398,7 +399,6 @@ pub fn generate_with(
                                     *a = Action::ALL[usize::from(c)];
                                 }
                             };
-                        let stall = config.student.as_ref().map_or(0, |it| it.stall_visits);
                         rollout_with(&mut env, &instance, &expert, rule, stall, &mut act)
                     }
                     _ => rollout(&mut env, &instance, &expert, rule, config.noise, &mut rng),
