@@ -266,8 +266,8 @@ fn read_config(path: &Path) -> anyhow::Result<ImitationConfig> {
         .map_err(|err| anyhow::anyhow!("parsing config {}: {err}", path.display()))
 }
 
-/// Round `round`'s data: read from `DIR/data-K.bin` when it is there and was made with
-/// this run's settings, else generated (round 0: the expert's rollouts; round K: the
+/// Round `round`'s data: read from `DIR/data-K.bin` when it is there and holds the episodes
+/// of this run's settings (`DataConfig::same_episodes`), else generated (round 0: the expert's rollouts; round K: the
 /// student's, labelled by the expert) and written atomically. A file of other settings, or
 /// one that cannot be read, is refused in a resumed run and replaced in a `fresh` one.
 fn round_data(
@@ -291,7 +291,11 @@ fn round_data(
             .map_err(anyhow::Error::from)
             .and_then(|bytes| Dataset::from_bytes(&bytes).map_err(anyhow::Error::from));
         match read {
-            Ok(data) if data.config == expected => return Ok(data),
+            // The replay computes the observations with this run's settings.
+            Ok(mut data) if data.config.same_episodes(&expected) => {
+                data.config = expected;
+                return Ok(data);
+            }
             // A fresh run makes its own data in place of another run's or a damaged file.
             _ if fresh => {}
             Ok(_) => anyhow::bail!(

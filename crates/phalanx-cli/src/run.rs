@@ -54,6 +54,48 @@ impl TeamPolicy {
     }
 }
 
+/// What the imitation student's vector holds after its goal vector (docs/imitation.md, *The
+/// exact input*): the world must write what the network reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Vectors {
+    /// The goal vector alone (3 values).
+    Goal,
+    /// Then the vector towards the agent's place on the agent in front (6): the shipped student.
+    Place,
+    /// Then the vector towards its place on the team (9).
+    Team,
+}
+
+impl Vectors {
+    /// What an environment of `config` writes.
+    fn of(config: &EnvConfig) -> Vectors {
+        match (config.place_vector, config.team_vector) {
+            (_, true) => Vectors::Team,
+            (true, false) => Vectors::Place,
+            (false, false) => Vectors::Goal,
+        }
+    }
+
+    /// `config` writing these vectors.
+    fn apply(self, config: EnvConfig) -> EnvConfig {
+        let (place_vector, team_vector) = match self {
+            Vectors::Goal => (false, false),
+            Vectors::Place => (true, false),
+            Vectors::Team => (true, true),
+        };
+        EnvConfig { place_vector, team_vector, ..config }
+    }
+
+    /// Its name on the command line.
+    fn name(self) -> &'static str {
+        match self {
+            Vectors::Goal => "goal",
+            Vectors::Place => "place",
+            Vectors::Team => "team",
+        }
+    }
+}
+
 /// What an agent decides with: one flat policy (path finding or the imitation student), or
 /// the hierarchy (its meta policy and both low-level policies).
 #[derive(Debug, Clone)]
@@ -97,12 +139,11 @@ impl Team {
         }
     }
 
-    /// Whether its policy reads the place vector (`EnvConfig::place_vector`: a student of
-    /// the planners).
-    pub(crate) fn place_vector(&self) -> bool {
+    /// The vectors its policy reads (the place and team vectors: a student of the planners).
+    pub(crate) fn vectors(&self) -> Vectors {
         match self {
-            Team::Flat(policy) => policy.env_config(Task::Meta).place_vector,
-            Team::Hierarchy(_) => false,
+            Team::Flat(policy) => Vectors::of(&policy.env_config(Task::Meta)),
+            Team::Hierarchy(_) => Vectors::Goal,
         }
     }
 
@@ -210,14 +251,14 @@ pub(crate) fn policy_for(weights: Option<&Path>, name: &str, n: usize) -> anyhow
 }
 
 /// The world of `instance` for a team of `policy` of field of view `fov` (the student's
-/// observations with the place vector when `place_vector`), with the step limit of
+/// observations with `vectors`), with the step limit of
 /// docs/spec.md §4 (three times the map side).
 pub(crate) fn world_for(
     named: &NamedInstance,
     path: &Path,
     policy: TeamPolicy,
     fov: u32,
-    place_vector: bool,
+    vectors: Vectors,
 ) -> anyhow::Result<World> {
     let instance = &named.instance;
     let step_limit = Some(3 * instance.grid().side());
@@ -225,8 +266,7 @@ pub(crate) fn world_for(
     match policy {
         TeamPolicy::Pathfinding => World::new(instance, config, 0),
         TeamPolicy::Imitation => {
-            let config = EnvConfig { task: Task::Meta, place_vector, ..config };
-            World::new(instance, config, 0)
+            World::new(instance, vectors.apply(EnvConfig { task: Task::Meta, ..config }), 0)
         }
         TeamPolicy::Hrl => World::hierarchy(instance, config, 0),
     }
@@ -297,8 +337,7 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
     if cmd.processes {
         return processes(&cmd, n, &team);
     }
-    let mut world =
-        world_for(&named, &cmd.instance, cmd.team.policy, team.fov(), team.place_vector())?;
+    let mut world = world_for(&named, &cmd.instance, cmd.team.policy, team.fov(), team.vectors())?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();
@@ -342,6 +381,9 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     world.arg("world").arg(&cmd.instance).args(["--listen", &endpoint, "--prefix", &prefix]);
     world.args(["--fov", &fov.to_string(), "--step-timeout", &cmd.step_timeout.to_string()]);
     world.args(["--policy", cmd.team.policy.name()]);
+    if cmd.team.policy == TeamPolicy::Imitation {
+        world.args(["--vectors", team.vectors().name()]);
+    }
     if let Some(agents) = cmd.agents {
         world.args(["--agents", &agents.to_string()]);
     }

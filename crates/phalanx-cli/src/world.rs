@@ -15,7 +15,7 @@ use anyhow::Context as _;
 use phalanx_runtime::run_world_paced;
 use phalanx_zenoh::{DEFAULT_PREFIX, DEFAULT_WORLD_ENDPOINT, Endpoints, Role, ZenohTransport};
 
-use crate::run::{self, TeamPolicy};
+use crate::run::{self, TeamPolicy, Vectors};
 use crate::util;
 
 /// Arguments of `phalanx world`.
@@ -38,10 +38,10 @@ pub(crate) struct WorldCmd {
     /// The agents' field of view (their policy's).
     #[arg(long, default_value_t = phalanx_gen::DEFAULT_FOV)]
     fov: u32,
-    /// With `--policy imitation`: observations without the place vector, for a student whose
-    /// network reads the goal vector only (the default student reads both, docs/imitation.md).
-    #[arg(long)]
-    no_place_vector: bool,
+    /// With `--policy imitation`: what the agents' vectors hold after the goal vector, as the
+    /// student's network reads them (`phalanx run` reads it off the network; docs/imitation.md).
+    #[arg(long, value_enum, default_value = "place")]
+    vectors: Vectors,
     /// How long to wait for an action before the first agent not in waits this step,
     /// milliseconds.
     #[arg(long, default_value_t = 2000, value_name = "MS")]
@@ -68,8 +68,7 @@ pub(crate) struct WorldCmd {
 pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
-    let place_vector = cmd.policy == TeamPolicy::Imitation && !cmd.no_place_vector;
-    let mut world = run::world_for(&named, &cmd.instance, cmd.policy, cmd.fov, place_vector)?;
+    let mut world = run::world_for(&named, &cmd.instance, cmd.policy, cmd.fov, cmd.vectors)?;
     let n = u16::try_from(named.instance.n_agents()).context("too many agents")?;
     let mut endpoints = Endpoints::world(&cmd.listen);
     endpoints.prefix = cmd.prefix.clone();

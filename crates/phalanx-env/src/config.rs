@@ -92,6 +92,15 @@ pub struct EnvConfig {
     /// false. Not written when false.
     #[serde(skip_serializing_if = "is_false")]
     pub place_vector: bool,
+    /// Whether an agent's vector ends with the vector towards its place in the goal layout
+    /// placed on the *team*: translated so that the layout's centre is the team's centre (the
+    /// mean of the agents' cells), as [`crate::Env::write_team_vector`] writes it. It tells
+    /// the agent in front, whose place vector is zeros, how far the others are behind; each
+    /// agent can compute it from the others' broadcast place vectors (`docs/observation.md`).
+    /// Needs [`EnvConfig::place_vector`]; the vector is then 9 long. Default false. Not
+    /// written when false.
+    #[serde(skip_serializing_if = "is_false")]
+    pub team_vector: bool,
 }
 
 fn is_false(x: &bool) -> bool {
@@ -111,6 +120,7 @@ impl Default for EnvConfig {
             step_limit: None,
             idle_cost: 0.0,
             place_vector: false,
+            team_vector: false,
         }
     }
 }
@@ -121,6 +131,9 @@ pub enum EnvError {
     /// The field of view is even or below 3.
     #[error("field of view {0} must be odd and at least 3")]
     Fov(u32),
+    /// The team vector without the place vector it follows.
+    #[error("the team vector needs the place vector (team_vector without place_vector)")]
+    TeamVector,
     /// A training map cannot be read or holds no formation (the reader's message names the
     /// file, and the line where one is at fault).
     #[error("training map: {0}")]

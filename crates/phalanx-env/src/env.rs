@@ -250,6 +250,9 @@ impl Env {
         if config.fov < 3 || config.fov.is_multiple_of(2) {
             return Err(EnvError::Fov(config.fov));
         }
+        if config.team_vector && !config.place_vector {
+            return Err(EnvError::TeamVector);
+        }
         let fov = config.fov as usize;
         Ok(Env {
             config,
@@ -308,11 +311,13 @@ impl Env {
     }
 
     /// Sizes of one agent's observation: the four channels of the field of view, the goal
-    /// vector (and the place vector with [`EnvConfig::place_vector`]) and the five actions'
-    /// mask.
+    /// vector (then the place vector with [`EnvConfig::place_vector`] and the team vector with
+    /// [`EnvConfig::team_vector`]) and the five actions' mask.
     #[inline]
     pub fn obs_shape(&self) -> ObsShape {
-        let env_vec = if self.config.place_vector { 2 * VECTOR_LEN } else { VECTOR_LEN };
+        let vectors =
+            1 + usize::from(self.config.place_vector) + usize::from(self.config.team_vector);
+        let env_vec = vectors * VECTOR_LEN;
         ObsShape { channels: CHANNELS, fov: self.fov, env_vec, n_actions: N_ACTIONS }
     }
 
@@ -767,7 +772,9 @@ impl Env {
 
     /// Writes every agent's vector into `out` (`[n_agents, env_vec]` of [`Env::obs_shape`]):
     /// its goal vector ([`Env::write_vector`]), then with [`EnvConfig::place_vector`] the
-    /// vector towards its place on the agent in front ([`Env::write_place_vector`]).
+    /// vector towards its place on the agent in front ([`Env::write_place_vector`]), then with
+    /// [`EnvConfig::team_vector`] the vector towards its place on the team
+    /// ([`Env::write_team_vector`]).
     ///
     /// # Panics
     /// If `out` has another length.
@@ -775,11 +782,16 @@ impl Env {
         let width = self.obs_shape().env_vec;
         assert_eq!(out.len(), self.pos.len() * width, "vectors of another size");
         let front = self.config.place_vector.then(|| self.front());
+        let shift = self.config.team_vector.then(|| self.team_shift());
         for (agent, vector) in out.chunks_exact_mut(width).enumerate() {
-            let (goal, place) = vector.split_at_mut(VECTOR_LEN);
+            let (goal, rest) = vector.split_at_mut(VECTOR_LEN);
             self.write_vector(agent, goal);
+            let (place, team) = rest.split_at_mut(rest.len().min(VECTOR_LEN));
             if let Some(front) = front {
                 self.write_place_vector(agent, front, place);
+            }
+            if let Some(shift) = shift {
+                self.write_team_vector(agent, shift, team);
             }
         }
     }

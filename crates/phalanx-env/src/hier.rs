@@ -134,7 +134,12 @@ impl HierEnv {
         assert!(n_agents > 0, "an environment needs agents");
         // The low-level observations are the path-finding and formation policies' own: the
         // place vector is the meta observation's ([`MetaInputs::place`]).
-        let env = Env::new(EnvConfig { task: Task::Meta, place_vector: false, ..config })?;
+        let env = Env::new(EnvConfig {
+            task: Task::Meta,
+            place_vector: false,
+            team_vector: false,
+            ..config
+        })?;
         let low = env.obs_shape();
         Ok(HierEnv {
             env,

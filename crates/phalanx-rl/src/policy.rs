@@ -67,12 +67,16 @@ impl Policy {
 
     /// The settings of an environment of `task` this policy acts in: its network's field of
     /// view, the place vector on the meta task when the network reads a vector of 6 (the
-    /// planners' student, `docs/imitation.md`), the rest the defaults (the step limit
+    /// planners' student, `docs/imitation.md`), the place and team vectors when it reads 9,
+    /// the rest the defaults (the step limit
     /// `3 × side`). Every command, the benchmark and the Python package derive a policy's
     /// environment here (a hierarchy's: `Hierarchy::env_config`).
     pub fn env_config(&self, task: Task) -> EnvConfig {
-        let place_vector = task == Task::Meta && self.config.env_vec == 2 * VECTOR_LEN;
-        EnvConfig { fov: self.config.fov as u32, task, place_vector, ..EnvConfig::default() }
+        let meta = task == Task::Meta;
+        let place_vector = meta && self.config.env_vec >= 2 * VECTOR_LEN;
+        let team_vector = meta && self.config.env_vec == 3 * VECTOR_LEN;
+        let fov = self.config.fov as u32;
+        EnvConfig { fov, task, place_vector, team_vector, ..EnvConfig::default() }
     }
 
     /// Replace the weights, keeping the recurrent state (a learner's policy after an update).

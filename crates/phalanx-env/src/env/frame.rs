@@ -179,6 +179,32 @@ impl Env {
         write_goal_vector(self.pos[agent], place, self.fov, out);
     }
 
+    /// The translation that places the goal layout on the team: the mean of the agents'
+    /// cells less the mean of their goals (`(0, 0)` when every agent is on its goal).
+    pub fn team_shift(&self) -> (f64, f64) {
+        let n = self.pos.len().max(1) as f64;
+        let sum = |cells: &[Cell], f: fn(&Cell) -> i32| {
+            cells.iter().map(|c| f64::from(f(c))).sum::<f64>()
+        };
+        let dx = sum(&self.pos, |c| c.x) - sum(&self.goals, |c| c.x);
+        let dy = sum(&self.pos, |c| c.y) - sum(&self.goals, |c| c.y);
+        (dx / n, dy / n)
+    }
+
+    /// Agent `agent`'s vector towards its place in the goal layout translated by `shift`
+    /// ([`Env::team_shift`]: the layout placed on the team's centre), scaled as
+    /// [`Env::write_vector`]. For the agent in front of a team that fell behind it points
+    /// back by the mean lag of the others: what it needs to know to wait for them.
+    ///
+    /// # Panics
+    /// If `agent` is not an agent.
+    pub fn write_team_vector(&self, agent: usize, shift: (f64, f64), out: &mut [f32]) {
+        let (p, g) = (self.pos[agent], self.goals[agent]);
+        let dx = f64::from(g.x - p.x) + shift.0;
+        let dy = f64::from(g.y - p.y) + shift.1;
+        write_scaled(dx, dy, self.fov, out);
+    }
+
     /// Whether `cell` is a free cell of the map (outside the map is blocked).
     fn padded_free(&self, cell: Cell) -> bool {
         let inside = |v: i32, side: u32| (0..side as i32).contains(&v);
@@ -291,9 +317,14 @@ fn window_at(window: &[u32], goal: Cell, cell: Cell) -> Option<u32> {
 
 /// The scaled goal vector `(dx/‖d‖, dy/‖d‖, ‖d‖/(‖d‖ + F))` from `p` to `g`, zeros on the goal.
 pub(super) fn write_goal_vector(p: Cell, g: Cell, fov: usize, out: &mut [f32]) {
-    let (dx, dy) = (f64::from(g.x - p.x), f64::from(g.y - p.y));
+    write_scaled(f64::from(g.x - p.x), f64::from(g.y - p.y), fov, out);
+}
+
+/// The scaled vector `(dx/‖d‖, dy/‖d‖, ‖d‖/(‖d‖ + F))` of `d = (dx, dy)`; zeros for a
+/// vector shorter than a hundredth of a cell.
+fn write_scaled(dx: f64, dy: f64, fov: usize, out: &mut [f32]) {
     let norm = (dx * dx + dy * dy).sqrt();
-    if norm == 0.0 {
+    if norm < 0.01 {
         out[..3].fill(0.0);
     } else {
         out[0] = (dx / norm) as f32;

@@ -164,3 +164,39 @@ fn the_environment_writes_the_meta_observations_place_vector() {
         hier.step(&joint.map(|a| a.index() as u8), &mut meta);
     }
 }
+
+#[test]
+fn the_team_vector_points_the_agent_in_front_back_to_a_team_behind_it() {
+    // Goals in a row (8..10, 1); agent 2 is in front, agents 0 and 1 have fallen behind it.
+    let inst = instance(16, 4, &[], &[c(1, 1), c(2, 1), c(6, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
+    let plain = EnvConfig { task: Task::Meta, place_vector: true, ..EnvConfig::default() };
+    let config = EnvConfig { team_vector: true, ..plain.clone() };
+    let mut env = Env::new(config).unwrap();
+    assert_eq!(env.obs_shape().env_vec, 9);
+    env.reset(&inst).unwrap();
+    assert_eq!(env.front(), 2);
+    // Mean of the cells (3, 1), of the goals (9, 1): the layout shifted by (-6, 0) puts the
+    // places at (2, 1), (3, 1), (4, 1): agent 0 one cell behind its place, agent 1 one, agent
+    // 2 two cells ahead of its place.
+    assert_eq!(env.team_shift(), (-6.0, 0.0));
+    let mut obs = ObsBuffers::new(3, env.obs_shape());
+    env.observe(&mut obs);
+    assert_eq!(&obs.vec_of(0)[6..], [1.0, 0.0, 0.1]);
+    assert_eq!(&obs.vec_of(1)[6..], [1.0, 0.0, 0.1]);
+    assert_eq!(&obs.vec_of(2)[6..], [-1.0, 0.0, (2.0_f64 / 11.0) as f32]);
+    // The goal and place vectors come first, as without the team vector.
+    let mut place = Env::new(plain).unwrap();
+    place.reset(&inst).unwrap();
+    let mut without = ObsBuffers::new(3, place.obs_shape());
+    place.observe(&mut without);
+    for agent in 0..3 {
+        assert_eq!(&obs.vec_of(agent)[..6], without.vec_of(agent), "agent {agent}");
+    }
+    // A team on its goals reads zeros; the team vector needs the place vector.
+    env.reset(&instance(16, 4, &[], &[c(8, 1), c(9, 1), c(10, 1)], &[c(8, 1), c(9, 1), c(10, 1)]))
+        .unwrap();
+    env.observe(&mut obs);
+    assert!(obs.vec.iter().all(|&v| v == 0.0));
+    let lone = EnvConfig { task: Task::Meta, team_vector: true, ..EnvConfig::default() };
+    assert!(Env::new(lone).is_err());
+}

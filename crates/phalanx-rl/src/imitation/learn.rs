@@ -139,16 +139,22 @@ impl ImitationConfig {
     pub fn check(&self) -> Result<(), String> {
         self.net.check().map_err(|err| format!("net: {err}"))?;
         let net = &self.net;
-        let vector = if self.data.env.place_vector { 2 * VECTOR_LEN } else { VECTOR_LEN };
+        let env = &self.data.env;
+        if env.team_vector && !env.place_vector {
+            return Err("data.env.team_vector: the team vector needs data.env.place_vector".into());
+        }
+        let vector =
+            VECTOR_LEN * (1 + usize::from(env.place_vector) + usize::from(env.team_vector));
         if net.n_actions != phalanx_core::Action::COUNT || net.env_vec != vector || net.centralised
         {
             return Err(format!(
                 "net: the student is a decentralised network of 5 actions and a vector of \
-                 {vector} (data.env.place_vector {}; n_actions {}, env_vec {}, centralised {})",
-                self.data.env.place_vector, net.n_actions, net.env_vec, net.centralised
+                 {vector} (data.env.place_vector {}, team_vector {}; n_actions {}, env_vec {}, \
+                 centralised {})",
+                env.place_vector, env.team_vector, net.n_actions, net.env_vec, net.centralised
             ));
         }
-        if self.data.env.place_vector && self.data.env.task != Task::Meta {
+        if env.place_vector && env.task != Task::Meta {
             return Err("data.env.place_vector: the place vector is the meta task's".into());
         }
         if self.data.env.fov as usize != net.fov {

@@ -198,3 +198,30 @@ fn settings_out_of_range_are_refused_by_name() {
     bad(DataConfig { agents: vec![3, 99], ..small(0.0, 1) }, "agents");
     bad(DataConfig { noise: 1.5, ..small(0.0, 1) }, "noise");
 }
+
+#[test]
+fn data_of_other_observations_holds_the_same_expert_episodes() {
+    // The expert's episodes do not depend on what the observations hold: data made without
+    // the place vector is the data of a run with the place and team vectors, sample for
+    // sample but for the vectors the replay now writes.
+    let bare =
+        DataConfig { env: EnvConfig { place_vector: false, ..small(0.1, 2).env }, ..small(0.1, 2) };
+    let team =
+        DataConfig { env: EnvConfig { team_vector: true, ..small(0.1, 2).env }, ..small(0.1, 2) };
+    assert!(bare.same_episodes(&team) && team.same_episodes(&bare));
+    let a = generate(&bare, &|_| {}).unwrap().0;
+    let b = generate(&team, &|_| {}).unwrap().0;
+    assert_eq!(a.episodes, b.episodes);
+    let mut widths = Vec::new();
+    for_each_sample(&a.episodes[0], &team.env, team.leader_rule, |s| widths.push(s.vector.len()))
+        .unwrap();
+    assert!(!widths.is_empty() && widths.iter().all(|&w| w == 9), "{widths:?}");
+    // Other episodes' settings, or a student's rollouts, are not the same episodes.
+    assert!(!bare.same_episodes(&DataConfig { seed: 6, ..team.clone() }));
+    let round = |config: &DataConfig| DataConfig {
+        student: Some(StudentRollouts { round: 1, network: 7, epsilon: 0.0, stall_visits: 3 }),
+        ..config.clone()
+    };
+    assert!(!round(&bare).same_episodes(&round(&team)));
+    assert!(round(&team).same_episodes(&round(&team)));
+}
