@@ -60,9 +60,9 @@ impl TeamPolicy {
 pub(crate) enum Vectors {
     /// The goal vector alone (3 values).
     Goal,
-    /// Then the vector towards the agent's place on the agent in front (6): the shipped student.
+    /// Then the vector towards the agent's place on the agent in front (6).
     Place,
-    /// Then the vector towards its place on the team (9).
+    /// Then the team vector of the agent in front (9): the shipped student.
     Team,
 }
 

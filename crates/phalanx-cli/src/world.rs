@@ -40,7 +40,7 @@ pub(crate) struct WorldCmd {
     fov: u32,
     /// With `--policy imitation`: what the agents' vectors hold after the goal vector, as the
     /// student's network reads them (`phalanx run` reads it off the network; docs/imitation.md).
-    #[arg(long, value_enum, default_value = "place")]
+    #[arg(long, value_enum, default_value = "team")]
     vectors: Vectors,
     /// How long to wait for an action before the first agent not in waits this step,
     /// milliseconds.

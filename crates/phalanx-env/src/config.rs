@@ -92,12 +92,14 @@ pub struct EnvConfig {
     /// false. Not written when false.
     #[serde(skip_serializing_if = "is_false")]
     pub place_vector: bool,
-    /// Whether an agent's vector ends with the vector towards its place in the goal layout
-    /// placed on the *team*: translated so that the layout's centre is the team's centre (the
-    /// mean of the agents' cells), as [`crate::Env::write_team_vector`] writes it. It tells
-    /// the agent in front, whose place vector is zeros, how far the others are behind; each
-    /// agent can compute it from the others' broadcast place vectors (`docs/observation.md`).
-    /// Needs [`EnvConfig::place_vector`]; the vector is then 9 long. Default false. Not
+    /// Whether an agent's vector ends with the *team vector*: for the agent in front (the
+    /// path-finding leader), the vector towards its place in the goal layout placed on the
+    /// team's centre (the mean of the agents' cells), zeros within
+    /// [`crate::obs::TEAM_DEADBAND`] of it; zeros for the other agents
+    /// ([`crate::Env::write_team_vector`]). It tells the agent in front, whose place vector is
+    /// zeros, how far the others lag behind; it can compute it from the others' broadcast
+    /// place vectors (`docs/observation.md`). Needs [`EnvConfig::place_vector`]; the vector is
+    /// then 9 long. The shipped student reads it (`docs/imitation.md`). Default false. Not
     /// written when false.
     #[serde(skip_serializing_if = "is_false")]
     pub team_vector: bool,

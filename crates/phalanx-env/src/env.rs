@@ -773,8 +773,8 @@ impl Env {
     /// Writes every agent's vector into `out` (`[n_agents, env_vec]` of [`Env::obs_shape`]):
     /// its goal vector ([`Env::write_vector`]), then with [`EnvConfig::place_vector`] the
     /// vector towards its place on the agent in front ([`Env::write_place_vector`]), then with
-    /// [`EnvConfig::team_vector`] the vector towards its place on the team
-    /// ([`Env::write_team_vector`]).
+    /// [`EnvConfig::team_vector`] the team vector: for the agent in front, the vector towards
+    /// its place on the team ([`Env::write_team_vector`]); zeros for the others.
     ///
     /// # Panics
     /// If `out` has another length.
@@ -791,7 +791,11 @@ impl Env {
                 self.write_place_vector(agent, front, place);
             }
             if let Some(shift) = shift {
-                self.write_team_vector(agent, shift, team);
+                if front == Some(agent) {
+                    self.write_team_vector(agent, shift, team);
+                } else {
+                    team.fill(0.0);
+                }
             }
         }
     }

@@ -52,8 +52,8 @@ impl PyPolicy {
         self.policy.config().fov
     }
 
-    /// The length of the vector the network reads: 3 (the goal vector), or 6 (the goal and
-    /// place vectors: the planners' student).
+    /// The length of the vector the network reads: 3 (the goal vector), 6 (the goal and
+    /// place vectors) or 9 (goal, place and team vectors: the planners' student).
     #[getter]
     fn vector_len(&self) -> usize {
         self.policy.config().env_vec
@@ -66,7 +66,7 @@ impl PyPolicy {
     }
 
     /// Every agent's action for one step, greedily among the allowed ones (ε-greedy with
-    /// `epsilon`, drawn from `seed`'s stream): `grid [N, 4, F, F]`, `vector [N, 3]` (`[N, 6]`: `vector_len`),
+    /// `epsilon`, drawn from `seed`'s stream): `grid [N, 4, F, F]`, `vector [N, 3]` (`[N, 6]` or `[N, 9]`: `vector_len`),
     /// `action_mask [N, 5]` and `rank [N]` (each agent's place in the leader order); agents
     /// choose in that order, each seeing the actions before it as its message.
     #[pyo3(signature = (grid, vector, action_mask, rank, epsilon = 0.0))]

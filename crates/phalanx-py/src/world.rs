@@ -7,7 +7,8 @@
 //!
 //! Arrays, allocated once (the agent count of an environment never changes):
 //! `grid [N, 4, F, F]` f32 (obstacles, agents, cost, formation), `vector [N, 3]` f32 (the goal
-//! vector; `[N, 6]` with the place vector after it, `place_vector=True` on the meta task),
+//! vector; `[N, 6]` with the place vector after it, `place_vector=True` on the meta task;
+//! `[N, 9]` with the team vector after that, `team_vector=True`),
 //! `action_mask [N, 5]` i8, `message [N, N, 5]` f32 (row `i` is agent `i`'s message),
 //! `rank [N]` i64 (each agent's place in this step's leader order), `rewards [N]` f32.
 
@@ -261,10 +262,11 @@ impl World {
     /// An environment of `task` on generated `size × size` maps (obstacle `density`, teams of
     /// `agents`) or on the instance file `instance`, with a `fov × fov` view; the meta task
     /// weighs `L_f` by `formation_weight` and, with `place_vector`, ends each agent's vector
-    /// with the vector towards its place (what the planners' student reads).
+    /// with the vector towards its place, then with `team_vector` the team vector (what the
+    /// planners' student reads; the team vector needs the place vector).
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments")]
-    #[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None, place_vector = false))]
+    #[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None, place_vector = false, team_vector = false))]
     fn new(
         py: Python<'_>,
         size: u32,
@@ -275,6 +277,7 @@ impl World {
         formation_weight: f64,
         instance: Option<PathBuf>,
         place_vector: bool,
+        team_vector: bool,
     ) -> PyResult<World> {
         let mut spec = Spec::new(size, density, agents, task, fov, formation_weight, instance)?;
         if place_vector && spec.task != Task::Meta {
@@ -283,6 +286,7 @@ impl World {
             )));
         }
         spec.env_config.place_vector = place_vector;
+        spec.env_config.team_vector = team_vector;
         let env = Env::new(spec.env_config.clone()).map_err(|err| error(&err))?;
         let n = spec.n_agents;
         let f = fov as usize;

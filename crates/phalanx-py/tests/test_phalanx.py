@@ -438,8 +438,18 @@ def test_a_trained_imitation_student_plays_in_python_as_phalanx_solve(instance_f
     train = ["train", "imitation", "--config", str(config), "--out", str(student)]
     subprocess.run([phalanx_bin(), *train], check=True, capture_output=True)
     policy = phalanx.load_policy("imitation", weights=student)
-    env = phalanx.parallel_env(instance=instance_file, task="meta", place_vector=True)
+    assert policy.vector_len == 9
+    # Without the team vector the student names the environment it needs.
+    place_only = phalanx.parallel_env(instance=instance_file, task="meta", place_vector=True)
+    observations, _ = place_only.reset(seed=0)
+    with pytest.raises(phalanx.PhalanxError, match="team_vector=True"):
+        policy.act(observations)
+    policy.reset()
+    env = phalanx.parallel_env(
+        instance=instance_file, task="meta", place_vector=True, team_vector=True
+    )
     assert env.observation_space("agent_0")["place"].shape == (3,)
+    assert env.observation_space("agent_0")["team"].shape == (3,)
     trajectory = play(policy, env)
     plan = tmp_path / "plan.yaml"
     solve = ["solve", str(instance_file), "--planner", "imitation", "--weights", str(student)]

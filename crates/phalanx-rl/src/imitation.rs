@@ -85,8 +85,8 @@ pub struct DataConfig {
     /// The training pool the episodes are drawn from (never the evaluation stream).
     pub pool: PoolConfig,
     /// The environment the episodes run in (field of view, step limit, clipping of the
-    /// masks, the place vector). Default: the meta task's (formation clipping) with the
-    /// place vector, otherwise the paper's.
+    /// masks, the place and team vectors). Default: the meta task's (formation clipping) with
+    /// the place and team vectors, otherwise the paper's.
     pub env: EnvConfig,
     /// The acting order of the labels; default path finding (the agent in front leads, the
     /// hierarchy's low-level order before its frame).
@@ -135,7 +135,12 @@ impl Default for DataConfig {
     fn default() -> DataConfig {
         DataConfig {
             pool: PoolConfig::default(),
-            env: EnvConfig { task: Task::Meta, place_vector: true, ..EnvConfig::default() },
+            env: EnvConfig {
+                task: Task::Meta,
+                place_vector: true,
+                team_vector: true,
+                ..EnvConfig::default()
+            },
             leader_rule: LeaderRule::PathFinding,
             agents: vec![3, 4, 5],
             episodes: 1000,

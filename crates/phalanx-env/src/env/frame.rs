@@ -24,7 +24,7 @@
 use phalanx_core::Cell;
 
 use super::{BLOCKED, Env, UNREACHABLE};
-use crate::obs::{CHANNELS, COST_SENTINEL};
+use crate::obs::{CHANNELS, COST_SENTINEL, TEAM_DEADBAND};
 
 /// Radius of the window of each frame goal's distances (a window of `2R + 1` cells a side).
 pub(crate) const RADIUS: i32 = 16;
@@ -193,8 +193,10 @@ impl Env {
 
     /// Agent `agent`'s vector towards its place in the goal layout translated by `shift`
     /// ([`Env::team_shift`]: the layout placed on the team's centre), scaled as
-    /// [`Env::write_vector`]. For the agent in front of a team that fell behind it points
-    /// back by the mean lag of the others: what it needs to know to wait for them.
+    /// [`Env::write_vector`]; zeros when it is shorter than [`TEAM_DEADBAND`]. For the agent
+    /// in front of a team that fell behind, it points back by the others' mean lag: what
+    /// it needs to know to wait for them ([`Env::write_vectors`] writes it for that agent
+    /// only).
     ///
     /// # Panics
     /// If `agent` is not an agent.
@@ -202,7 +204,11 @@ impl Env {
         let (p, g) = (self.pos[agent], self.goals[agent]);
         let dx = f64::from(g.x - p.x) + shift.0;
         let dy = f64::from(g.y - p.y) + shift.1;
-        write_scaled(dx, dy, self.fov, out);
+        if dx * dx + dy * dy < TEAM_DEADBAND * TEAM_DEADBAND {
+            out[..3].fill(0.0);
+        } else {
+            write_scaled(dx, dy, self.fov, out);
+        }
     }
 
     /// Whether `cell` is a free cell of the map (outside the map is blocked).

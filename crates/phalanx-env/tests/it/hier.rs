@@ -176,14 +176,14 @@ fn the_team_vector_points_the_agent_in_front_back_to_a_team_behind_it() {
     env.reset(&inst).unwrap();
     assert_eq!(env.front(), 2);
     // Mean of the cells (3, 1), of the goals (9, 1): the layout shifted by (-6, 0) puts the
-    // places at (2, 1), (3, 1), (4, 1): agent 0 one cell behind its place, agent 1 one, agent
-    // 2 two cells ahead of its place.
+    // places at (2, 1), (3, 1), (4, 1): agent 2 stands two cells ahead of its place, and
+    // only the agent in front reads the vector.
     assert_eq!(env.team_shift(), (-6.0, 0.0));
     let mut obs = ObsBuffers::new(3, env.obs_shape());
     env.observe(&mut obs);
-    assert_eq!(&obs.vec_of(0)[6..], [1.0, 0.0, 0.1]);
-    assert_eq!(&obs.vec_of(1)[6..], [1.0, 0.0, 0.1]);
     assert_eq!(&obs.vec_of(2)[6..], [-1.0, 0.0, (2.0_f64 / 11.0) as f32]);
+    assert_eq!(&obs.vec_of(0)[6..], [0.0; 3]);
+    assert_eq!(&obs.vec_of(1)[6..], [0.0; 3]);
     // The goal and place vectors come first, as without the team vector.
     let mut place = Env::new(plain).unwrap();
     place.reset(&inst).unwrap();
@@ -192,11 +192,18 @@ fn the_team_vector_points_the_agent_in_front_back_to_a_team_behind_it() {
     for agent in 0..3 {
         assert_eq!(&obs.vec_of(agent)[..6], without.vec_of(agent), "agent {agent}");
     }
-    // A team on its goals reads zeros; the team vector needs the place vector.
+    // A team less out of shape is within the dead band (agent 2 two thirds of a cell ahead
+    // of its place): zeros; so is a team on its goals.
+    let near = instance(16, 4, &[], &[c(4, 1), c(5, 1), c(7, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
+    env.reset(&near).unwrap();
+    assert_eq!(env.front(), 2);
+    env.observe(&mut obs);
+    assert_eq!(&obs.vec_of(2)[6..], [0.0; 3]);
     env.reset(&instance(16, 4, &[], &[c(8, 1), c(9, 1), c(10, 1)], &[c(8, 1), c(9, 1), c(10, 1)]))
         .unwrap();
     env.observe(&mut obs);
     assert!(obs.vec.iter().all(|&v| v == 0.0));
+    // The team vector needs the place vector.
     let lone = EnvConfig { task: Task::Meta, team_vector: true, ..EnvConfig::default() };
     assert!(Env::new(lone).is_err());
 }

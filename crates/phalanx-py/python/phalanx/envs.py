@@ -72,6 +72,7 @@ class _Core:
         instance: str | os.PathLike | None,
         render_mode: str | None,
         place_vector: bool,
+        team_vector: bool,
     ) -> None:
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise _phalanx.PhalanxError(
@@ -80,7 +81,7 @@ class _Core:
         path = None if instance is None else os.fspath(instance)
         weight = 1.0 if formation_weight is None else float(formation_weight)
         self.world = _phalanx.World(
-            size, density, agents, task, fov, weight, path, bool(place_vector)
+            size, density, agents, task, fov, weight, path, bool(place_vector), bool(team_vector)
         )
         if task == "meta" and formation_weight is None:
             n = self.world.n_agents
@@ -100,7 +101,9 @@ class _Core:
             views = {c: grid[i, k] for k, c in enumerate(CHANNELS)}
             views["goal"] = vector[i, :3]
             if place_vector:
-                views["place"] = vector[i, 3:]
+                views["place"] = vector[i, 3:6]
+            if team_vector:
+                views["team"] = vector[i, 6:9]
             views["action_mask"] = mask[i]
             views["message"] = message[i]
             views["rank"] = rank[i : i + 1].reshape(())
@@ -125,6 +128,8 @@ class _Core:
         }
         if place_vector:
             observation_space["place"] = vector_box
+        if team_vector:
+            observation_space["team"] = vector_box
         self.observation_space = spaces.Dict(observation_space)
         self.action_space = spaces.Discrete(len(ACTIONS))
 
@@ -172,6 +177,7 @@ class _Shared:
         instance: str | os.PathLike | None = None,
         render_mode: str | None = None,
         place_vector: bool = False,
+        team_vector: bool = False,
     ) -> None:
         self._core = _Core(
             size,
@@ -184,6 +190,7 @@ class _Shared:
             instance,
             render_mode,
             place_vector,
+            team_vector,
         )
         self.render_mode = render_mode
         self.possible_agents = list(self._core.names)
@@ -310,8 +317,10 @@ def parallel_env(**kwargs: Any) -> ParallelEnv:
     libMultiRobotPlanning ``.yaml`` or MovingAI ``.scen`` path, played every episode),
     ``render_mode=None`` (``"ansi"``, ``"rgb_array"`` or ``"svg"``), ``place_vector=False``
     (meta task only: each observation gains ``"place"``, the vector towards the agent's
-    place in the goal layout placed on the agent in front, which the planners' student
-    ``load_policy("imitation")`` reads)."""
+    place in the goal layout placed on the agent in front), ``team_vector=False`` (with
+    ``place_vector``: each observation gains ``"team"``, for the agent in front the vector
+    towards its place in the goal layout placed on the team, zeros for the others); the
+    planners' student ``load_policy("imitation")`` reads both."""
     return ParallelEnv(**kwargs)
 
 

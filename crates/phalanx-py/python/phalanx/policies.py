@@ -2,8 +2,9 @@
 
 ``load_policy(name)`` gives a policy whose ``act(observations)`` takes the observation dict
 of a phalanx environment (``{agent: {"obstacles", "agents", "cost", "formation", "goal",
-"action_mask", "message", "rank"}}``, and ``"place"`` for the planners' student, which
-reads it: ``parallel_env(task="meta", place_vector=True)``) and returns ``{agent: action}``. Agents choose in the
+"action_mask", "message", "rank"}}``, and ``"place"`` and ``"team"`` for the planners'
+student, which reads them: ``parallel_env(task="meta", place_vector=True, team_vector=True)``)
+and returns ``{agent: action}``. Agents choose in the
 order of their ``rank``, each with the actions of those before it as its message, so the
 parallel form plays exactly as the turn-by-turn one. The recurrent state is carried from
 call to call: ``reset()`` at the start of every episode.
@@ -16,6 +17,9 @@ import numpy as np
 
 from phalanx import _phalanx
 from phalanx.envs import CHANNELS, world_of
+
+# The vectors a network reads, in order: 3 values each (its ``vector_len`` / 3 of them).
+VECTOR_KEYS = ("goal", "place", "team")
 
 Observations = dict[str, dict[str, np.ndarray]]
 
@@ -32,6 +36,11 @@ class Policy:
     def n_agents_max(self) -> int:
         return self._net.n_agents_max
 
+    @property
+    def vector_len(self) -> int:
+        """The vector the network reads: 3 (goal), 6 (and place) or 9 (and team)."""
+        return self._net.vector_len
+
     def reset(self) -> None:
         """Forgets the recurrent state (a new episode)."""
         self._net.reset()
@@ -43,15 +52,14 @@ class Policy:
         grid = np.ascontiguousarray(
             np.stack([np.stack([o[c] for c in CHANNELS]) for o in obs]), dtype=np.float32
         )
-        if self._net.vector_len == 6:
-            if any("place" not in o for o in obs):
-                raise _phalanx.PhalanxError(
-                    f"{self.name}: the policy reads the place vector: observations of "
-                    "parallel_env(task='meta', place_vector=True)"
-                )
-            rows = [np.concatenate([o["goal"], o["place"]]) for o in obs]
-        else:
-            rows = [o["goal"] for o in obs]
+        keys = VECTOR_KEYS[: self._net.vector_len // 3]
+        if any(key not in o for o in obs for key in keys):
+            flags = ", ".join(f"{key}_vector=True" for key in keys[1:])
+            raise _phalanx.PhalanxError(
+                f"{self.name}: the policy reads the vectors {', '.join(keys)}: observations "
+                f"of parallel_env(task='meta', {flags})"
+            )
+        rows = [np.concatenate([o[key] for key in keys]) for o in obs]
         vector = np.ascontiguousarray(np.stack(rows), dtype=np.float32)
         mask = np.ascontiguousarray(np.stack([o["action_mask"] for o in obs]), dtype=np.int8)
         rank = np.ascontiguousarray([int(o["rank"]) for o in obs], dtype=np.int64)

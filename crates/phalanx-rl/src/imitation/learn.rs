@@ -41,9 +41,10 @@ pub struct ImitationConfig {
     pub sequence: SequenceMode,
     /// Clip the global gradient norm to this value; `None`: no clip.
     pub grad_clip_norm: Option<f32>,
-    /// Updates of round 0 (cloning).
+    /// Updates of round 0 (cloning); default 1250.
     pub updates: u64,
-    /// DAgger rounds after cloning.
+    /// DAgger rounds after cloning; default 0: with the team vector no round was chosen on
+    /// the validation stream over the cloning alone (docs/imitation.md).
     pub rounds: u32,
     /// Student episodes relabelled per DAgger round.
     pub round_episodes: u64,
@@ -84,13 +85,13 @@ impl Default for ImitationConfig {
                 episodes: 1500,
                 ..DataConfig::default()
             },
-            net: QNetConfig { env_vec: 2 * VECTOR_LEN, ..QNetConfig::default() },
+            net: QNetConfig { env_vec: 3 * VECTOR_LEN, ..QNetConfig::default() },
             lr: 1e-3,
             batch_size: 16,
             sequence: SequenceMode::Episodes,
             grad_clip_norm: Some(10.0),
-            updates: 3000,
-            rounds: 4,
+            updates: 1250,
+            rounds: 0,
             round_episodes: 300,
             round_pool: None,
             round_expert: None,
