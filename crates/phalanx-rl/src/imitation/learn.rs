@@ -358,7 +358,7 @@ mod tests {
                 let row = s.t * n + s.agent;
                 assert_eq!(&it.grid[row * grid..(row + 1) * grid], s.grid);
                 let width = s.vector.len();
-                assert_eq!(width, 6, "the student reads the goal and place vectors");
+                assert_eq!(width, 9, "the student reads the goal, place and team vectors");
                 assert_eq!(&it.vec[row * width..(row + 1) * width], s.vector);
                 assert_eq!(&it.action_mask[row * 5..row * 5 + 5], s.mask);
                 assert_eq!(it.order[s.t * n + s.rank], s.agent);

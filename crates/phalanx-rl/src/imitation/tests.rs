@@ -105,11 +105,18 @@ fn messages_are_the_expert_actions_of_the_agents_ranked_before() {
             assert_eq!(s.target, step.expert[s.agent]);
             assert!(s.mask[s.target.index()], "the label is allowed by the mask");
             assert_eq!(s.grid.len(), 4 * 9 * 9);
-            // The goal vector, then the place vector on the agent in front.
-            assert_eq!(s.vector.len(), 6);
+            // The goal vector, then the place vector on the agent in front, then the team
+            // vector, the front agent's only.
+            assert_eq!(s.vector.len(), 9);
+            let front = usize::from(step.order[0]);
             let mut place = [0.0; 3];
-            replay.write_place_vector(s.agent, usize::from(step.order[0]), &mut place);
-            assert_eq!(&s.vector[3..], place, "sample {k}");
+            replay.write_place_vector(s.agent, front, &mut place);
+            assert_eq!(&s.vector[3..6], place, "sample {k}");
+            let mut team = [0.0; 3];
+            if s.agent == front {
+                replay.write_team_vector(s.agent, replay.team_shift(), &mut team);
+            }
+            assert_eq!(&s.vector[6..], team, "sample {k}");
             k += 1;
         })
         .unwrap();
@@ -204,10 +211,10 @@ fn data_of_other_observations_holds_the_same_expert_episodes() {
     // The expert's episodes do not depend on what the observations hold: data made without
     // the place vector is the data of a run with the place and team vectors, sample for
     // sample but for the vectors the replay now writes.
-    let bare =
-        DataConfig { env: EnvConfig { place_vector: false, ..small(0.1, 2).env }, ..small(0.1, 2) };
-    let team =
-        DataConfig { env: EnvConfig { team_vector: true, ..small(0.1, 2).env }, ..small(0.1, 2) };
+    let team = small(0.1, 2);
+    assert!(team.env.place_vector && team.env.team_vector);
+    let env = EnvConfig { place_vector: false, team_vector: false, ..team.env.clone() };
+    let bare = DataConfig { env, ..team.clone() };
     assert!(bare.same_episodes(&team) && team.same_episodes(&bare));
     let a = generate(&bare, &|_| {}).unwrap().0;
     let b = generate(&team, &|_| {}).unwrap().0;
