@@ -267,9 +267,10 @@ fn read_config(path: &Path) -> anyhow::Result<ImitationConfig> {
 }
 
 /// Round `round`'s data: read from `DIR/data-K.bin` when it is there and holds the episodes
-/// of this run's settings (`DataConfig::same_episodes`), else generated (round 0: the expert's rollouts; round K: the
-/// student's, labelled by the expert) and written atomically. A file of other settings, or
-/// one that cannot be read, is refused in a resumed run and replaced in a `fresh` one.
+/// of this run's settings (`DataConfig::same_episodes`: observation settings aside), else
+/// generated (round 0: the expert's rollouts; round K: the student's, labelled by the
+/// expert) and written atomically. A file of other settings, or one that cannot be read, is
+/// refused in a resumed run and replaced in a `fresh` one.
 fn round_data(
     config: &ImitationConfig,
     dir: &Path,

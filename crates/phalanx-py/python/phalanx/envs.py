@@ -80,9 +80,8 @@ class _Core:
             )
         path = None if instance is None else os.fspath(instance)
         weight = 1.0 if formation_weight is None else float(formation_weight)
-        self.world = _phalanx.World(
-            size, density, agents, task, fov, weight, path, bool(place_vector), bool(team_vector)
-        )
+        vectors = (bool(place_vector), bool(team_vector))
+        self.world = _phalanx.World(size, density, agents, task, fov, weight, path, *vectors)
         if task == "meta" and formation_weight is None:
             n = self.world.n_agents
             self.world.set_formation_weight(_phalanx.default_formation_weight(n))
