@@ -113,6 +113,15 @@ fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
+impl EnvConfig {
+    /// The length of each agent's vector: the goal vector, then the place and team vectors
+    /// when on ([`crate::obs::VECTOR_LEN`] values each).
+    pub fn vector_len(&self) -> usize {
+        let vectors = 1 + usize::from(self.place_vector) + usize::from(self.team_vector);
+        vectors * crate::obs::VECTOR_LEN
+    }
+}
+
 impl Default for EnvConfig {
     fn default() -> EnvConfig {
         EnvConfig {

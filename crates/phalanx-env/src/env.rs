@@ -315,9 +315,7 @@ impl Env {
     /// [`EnvConfig::team_vector`]) and the five actions' mask.
     #[inline]
     pub fn obs_shape(&self) -> ObsShape {
-        let vectors =
-            1 + usize::from(self.config.place_vector) + usize::from(self.config.team_vector);
-        let env_vec = vectors * VECTOR_LEN;
+        let env_vec = self.config.vector_len();
         ObsShape { channels: CHANNELS, fov: self.fov, env_vec, n_actions: N_ACTIONS }
     }
 

@@ -144,8 +144,7 @@ impl ImitationConfig {
         if env.team_vector && !env.place_vector {
             return Err("data.env.team_vector: the team vector needs data.env.place_vector".into());
         }
-        let vector =
-            VECTOR_LEN * (1 + usize::from(env.place_vector) + usize::from(env.team_vector));
+        let vector = env.vector_len();
         if net.n_actions != phalanx_core::Action::COUNT || net.env_vec != vector || net.centralised
         {
             return Err(format!(
