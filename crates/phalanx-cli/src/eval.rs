@@ -12,11 +12,9 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_core::Instance;
 use phalanx_env::{EnvConfig, EvalMaps, GenConfig, Task};
-use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{EvalSummary, Hierarchy, Rollouts, evaluate, evaluate_hierarchy};
 use serde::Serialize;
 
@@ -111,6 +109,11 @@ pub(crate) struct EvalCmd {
     /// Which rollout counts, a solved one always first.
     #[arg(long, value_enum, default_value_t = meta::KeepArg::Fastest)]
     keep: meta::KeepArg,
+    /// Learned policies: the stall escape, `VISITS:PROB` (from the VISITS-th step on one cell
+    /// off the goal, a random allowed action with probability PROB) or `off` (default: the
+    /// policy's own: the imitation student's 4:0.5, none for the others; docs/imitation.md).
+    #[arg(long, value_name = "VISITS:PROB|off", value_parser = crate::util::escape)]
+    escape: Option<crate::util::EscapeArg>,
     #[command(flatten)]
     leader: meta::LeaderArgs,
     /// hrl, leader: the path-finding policy's directory or file (default: the one the meta
@@ -174,10 +177,11 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     } else {
         models::weights_file(cmd.weights.as_deref(), name)?
     };
-    let device = Device::flex();
-    let (mut policy, header) =
-        load_policy_any(&file, &device).with_context(|| format!("loading the {name} policy"))?;
-    models::check_kind(&file, &header, if scripted { "pathfinding" } else { name })?;
+    let (mut policy, header, _) =
+        models::load_with_header(Some(&file), if scripted { "pathfinding" } else { name })?;
+    if let Some(escape) = cmd.escape {
+        policy.set_escape(escape.0);
+    }
     let fov = header.net_config.fov as u32;
     anyhow::ensure!(
         cmd.map.fov == fov,

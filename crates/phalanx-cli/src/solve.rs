@@ -18,14 +18,12 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use burn::tensor::Device;
 use phalanx_eval::{Method, Settings, Solver};
 use phalanx_io::PlanStats;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::planner::Outcome;
 use phalanx_plan::swarm::SwarmConfig;
 use phalanx_plan::{Budget, PlannerChoice, SolveSummary, astar, cbs, ecbs, run_planner};
-use phalanx_rl::policy_file::load_policy_any;
 
 use phalanx_rl::models;
 
@@ -76,6 +74,11 @@ pub(crate) struct SolveCmd {
     time_limit: f64,
     #[command(flatten)]
     rollouts: meta::RolloutArgs,
+    /// Learned policies: the stall escape, `VISITS:PROB` (from the VISITS-th step on one cell
+    /// off the goal, a random allowed action with probability PROB) or `off` (default: the
+    /// policy's own: the imitation student's 4:0.5, none for the others; docs/imitation.md).
+    #[arg(long, value_name = "VISITS:PROB|off", value_parser = crate::util::escape)]
+    escape: Option<crate::util::EscapeArg>,
     /// Learned policies: the weights directory (hrl: the meta policy's; default: the
     /// shipped models/meta or models/pathfinding).
     #[arg(long, value_name = "DIR")]
@@ -188,10 +191,10 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
         PlannerName::Imitation => "imitation",
         _ => "pathfinding",
     };
-    let file = models::weights_file(cmd.weights.as_deref(), name)?;
-    let (policy, header) = load_policy_any(&file, &Device::flex())
-        .with_context(|| format!("loading the {name} policy"))?;
-    models::check_kind(&file, &header, name)?;
+    let (mut policy, header, file) = models::load_with_header(cmd.weights.as_deref(), name)?;
+    if let Some(escape) = cmd.escape {
+        policy.set_escape(escape.0);
+    }
     let solver = if hrl {
         let hierarchy = models::hierarchy(policy, &header, &file, None, None)?;
         Solver::Hierarchy(Box::new(hierarchy))

@@ -15,6 +15,7 @@ use std::path::Path;
 use phalanx_plan::PlannerChoice;
 use phalanx_plan::joint_astar::{JointAStarConfig, Objective};
 use phalanx_plan::{astar, cbs, ecbs, swarm};
+use phalanx_rl::escape::parse_escape;
 use phalanx_rl::models::{self, MetaFront, ModelError};
 use phalanx_rl::{Hierarchy, ScriptedMeta};
 use thiserror::Error;
@@ -73,7 +74,8 @@ pub enum MethodError {
         /// The parameter.
         param: String,
     },
-    /// The parameter is out of the method's range (ECBS's bound below 1).
+    /// The parameter is out of the method's range (ECBS's bound below 1, an escape that is
+    /// none).
     #[error("method {spec}: {message}")]
     Bound {
         /// The whole name.
@@ -197,14 +199,21 @@ impl Method {
                 let low = models::low_level_of(pathfinding, None).map_err(model)?;
                 Ok(Method::new(spec, Solver::Hierarchy(Box::new(Hierarchy::scripted(rule, low)))))
             }
-            "e2e" | "ctce" | "imitation" => {
+            "e2e" | "ctce" => {
                 no_param()?;
-                let path = match name {
-                    "e2e" => sources.e2e,
-                    "ctce" => sources.ctce,
-                    _ => sources.imitation,
-                };
+                let path = if name == "e2e" { sources.e2e } else { sources.ctce };
                 let (policy, _) = models::load(path, name).map_err(model)?;
+                Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
+            }
+            "imitation" => {
+                // `imitation:off`, `imitation:VISITS:PROB`: another stall escape than the
+                // student's own.
+                let (mut policy, _) = models::load(sources.imitation, name).map_err(model)?;
+                if let Some(param) = param {
+                    let escape = parse_escape(param)
+                        .map_err(|message| MethodError::Bound { spec: spec.to_owned(), message })?;
+                    policy.set_escape(escape);
+                }
                 Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
             }
             "hrl" => {
@@ -297,8 +306,29 @@ mod tests {
             assert!(message.contains("bound must be a finite number of at least 1"), "{message}");
         }
         assert!(Method::named("ecbs:1", &Sources::default()).is_ok());
+        let message = err("imitation:on");
+        assert!(
+            message.starts_with("method imitation:on: escape \"on\": VISITS:PROB"),
+            "{message}"
+        );
         let jsa =
             Method::named("jsa:0.5", &Sources { jsa_max_side: Some(32), ..Sources::default() });
         assert_eq!(jsa.unwrap().max_side, Some(32));
+    }
+
+    #[test]
+    fn the_student_acts_with_its_escape_unless_its_name_says_otherwise() {
+        let escape_of = |spec: &str| match Method::named(spec, &Sources::default()).unwrap().solver
+        {
+            Solver::EndToEnd(policy) => policy.escape(),
+            _ => panic!("{spec}: a learned policy"),
+        };
+        assert_eq!(escape_of("imitation"), Some(phalanx_rl::Escape::STUDENT));
+        assert_eq!(escape_of("imitation:off"), None);
+        assert_eq!(
+            escape_of("imitation:2:0.25"),
+            Some(phalanx_rl::Escape { visits: 2, prob: 0.25 })
+        );
+        assert_eq!(escape_of("e2e"), None);
     }
 }

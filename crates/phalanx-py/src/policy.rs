@@ -59,6 +59,24 @@ impl PyPolicy {
         self.policy.config().env_vec
     }
 
+    /// The stall escape it acts with, `"VISITS:PROB"`, or `None` (greedy as trained): the
+    /// imitation student's is `"4:0.5"` (docs/imitation.md). Set `"off"` (or `None`) or another
+    /// `"VISITS:PROB"`.
+    #[getter]
+    fn escape(&self) -> Option<String> {
+        self.policy.escape().map(|escape| escape.to_string())
+    }
+
+    #[setter]
+    fn set_escape(&mut self, escape: Option<&str>) -> PyResult<()> {
+        let escape = match escape {
+            Some(text) => phalanx_rl::escape::parse_escape(text).map_err(bad)?,
+            None => None,
+        };
+        self.policy.set_escape(escape);
+        Ok(())
+    }
+
     /// Forgets the recurrent state: call at the start of every episode.
     fn reset(&mut self) {
         self.policy.reset();

@@ -439,6 +439,13 @@ def test_a_trained_imitation_student_plays_in_python_as_phalanx_solve(instance_f
     subprocess.run([phalanx_bin(), *train], check=True, capture_output=True)
     policy = phalanx.load_policy("imitation", weights=student)
     assert policy.vector_len == 9
+    # The student acts with its stall escape, as in `phalanx solve` (compared below).
+    assert policy.escape == "4:0.5"
+    policy.escape = "off"
+    assert policy.escape is None
+    with pytest.raises(phalanx.PhalanxError, match="VISITS:PROB"):
+        policy.escape = "sometimes"
+    policy.escape = "4:0.5"
     # Without the team vector the student names the environment it needs.
     place_only = phalanx.parallel_env(instance=instance_file, task="meta", place_vector=True)
     observations, _ = place_only.reset(seed=0)

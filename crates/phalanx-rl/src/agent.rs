@@ -2,7 +2,8 @@
 //! docs/runtime.md): its own recurrent state, its own observation, and the actions of the
 //! agents ranked before it this step as its message. The network is the same as
 //! [`Policy`]'s; an [`AgentPolicy`] per agent gives, step by step, the actions the batched
-//! [`Policy::act`] gives the team (greedy; tested in `tests/it/agent.rs`).
+//! [`Policy::act`] gives the team (greedy, or with the policy's stall escape, whose draws
+//! are the agent's own; tested in `tests/it/agent.rs`).
 //!
 //! [`AgentHierarchy`] is one agent's side of the whole hierarchy ([`Hierarchy`]): the meta
 //! policy and both low-level policies, each an [`AgentPolicy`] with its own recurrent state;
@@ -12,6 +13,7 @@
 use phalanx_env::Choice;
 use phalanx_env::obs::VECTOR_LEN;
 
+use crate::escape::Stuck;
 use crate::hierarchy::{Hierarchy, MetaPolicy};
 use crate::net::masked_argmax;
 use crate::policy::Policy;
@@ -65,6 +67,8 @@ pub enum AgentError {
 pub struct AgentPolicy {
     policy: Policy,
     agent: usize,
+    /// Its side of the policy's stall escape, when the policy has one.
+    stuck: Stuck,
 }
 
 impl AgentPolicy {
@@ -81,7 +85,7 @@ impl AgentPolicy {
             return Err(AgentError::Slot { agent, slots });
         }
         policy.reset();
-        Ok(AgentPolicy { policy, agent })
+        Ok(AgentPolicy { policy, agent, stuck: Stuck::new(agent) })
     }
 
     /// The agent.
@@ -92,11 +96,13 @@ impl AgentPolicy {
     /// Starts a new episode (the recurrent state back to zeros).
     pub fn reset(&mut self) {
         self.policy.reset();
+        self.stuck = Stuck::new(self.agent);
     }
 
     /// The greedy action for this step's observation (`grid` `[C, F, F]`, `vector`, `mask`)
-    /// after the agents of `earlier` (`(agent, action)`, those ranked before it) chose theirs.
-    /// Advances the recurrent state: [`AgentPolicy::observe`], then [`AgentPolicy::choose`].
+    /// after the agents of `earlier` (`(agent, action)`, those ranked before it) chose theirs,
+    /// or the policy's stall escape's random one ([`Policy::set_escape`]). Advances the
+    /// recurrent state: [`AgentPolicy::observe`], then [`AgentPolicy::choose`].
     ///
     /// # Errors
     /// Inputs of other sizes than the network's, a message outside its slots or actions, a
@@ -112,7 +118,12 @@ impl AgentPolicy {
         self.check_mask(mask)?;
         let message = self.message(earlier)?;
         let features = self.observe(grid, vector)?;
-        Ok(self.head(&features, mask, message))
+        let greedy = self.head(&features, mask, message);
+        let escaped = self.policy.escape().and_then(|rule| {
+            let stalled = self.stuck.visit(&rule, vector);
+            stalled.then(|| self.stuck.step_out(&rule, mask)).flatten()
+        });
+        Ok(escaped.map_or(greedy, |action| action as u8))
     }
 
     /// This step's recurrent pass on the agent's observation (`grid` `[C, F, F]`, `vector`):

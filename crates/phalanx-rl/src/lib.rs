@@ -42,6 +42,7 @@
 
 pub mod agent;
 pub mod checkpoint;
+pub mod escape;
 pub mod eval;
 mod frozen;
 pub mod hierarchy;
@@ -60,6 +61,7 @@ pub mod train;
 pub mod weight;
 
 pub use agent::{AgentError, AgentHierarchy, AgentPolicy, Features};
+pub use escape::Escape;
 pub use eval::evaluate_hierarchy;
 pub use eval::{EvalEpisode, EvalSummary, Keep, Rollouts, evaluate};
 pub use hierarchy::{

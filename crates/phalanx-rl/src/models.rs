@@ -16,7 +16,7 @@ use thiserror::Error;
 
 use crate::hierarchy::{HierarchyError, LowLevelError};
 use crate::policy_file::{Header, load_policy_any};
-use crate::{CheckpointError, Hierarchy, LowLevel, MetaInfo, Policy, PolicyRef};
+use crate::{CheckpointError, Escape, Hierarchy, LowLevel, MetaInfo, Policy, PolicyRef};
 
 /// File names a weights directory may hold, in order of preference.
 const WEIGHT_FILES: [&str; 2] = ["policy.bin", "checkpoint"];
@@ -130,7 +130,8 @@ fn default_dirs(name: &str) -> Vec<PathBuf> {
 }
 
 /// Loads the policy `name` from `path` (a file or a weights directory) or the shipped model,
-/// on the CPU, with its header and file.
+/// on the CPU, with its header and file. The `imitation` student acts with its stall escape
+/// ([`Escape::STUDENT`]), wherever it is loaded; the other policies greedily as trained.
 ///
 /// # Errors
 /// If no file is found or it cannot be read.
@@ -145,6 +146,10 @@ pub fn load_with_header(
     let (policy, header) = load_policy_any(&file, &Device::flex())
         .map_err(|source| ModelError::Load { name: name.to_owned(), source })?;
     check_kind(&file, &header, name)?;
+    let mut policy = policy;
+    if name == "imitation" {
+        policy.set_escape(Some(Escape::STUDENT));
+    }
     Ok((policy, header, file))
 }
 

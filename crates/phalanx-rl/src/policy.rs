@@ -4,7 +4,9 @@
 //! 1. one recurrent step for all agents of all episodes (`Σ N_e` rows, one batched pass);
 //! 2. the head in leader order: at rank `k`, the agents ranked `k` of every episode go through
 //!    the head together, each with the message of the actions its team chose at ranks `0..k`;
-//! 3. ε-greedy among the allowed actions (a masked action is never chosen).
+//! 3. ε-greedy among the allowed actions (a masked action is never chosen), or, for a policy
+//!    with a stall escape ([`Policy::set_escape`]), the escape's random action where an agent
+//!    keeps coming back to one cell ([`crate::escape`]).
 //!
 //! Episodes may have different agent counts. The recurrent state of each episode is carried
 //! between calls; [`Policy::reset_envs`] clears the rows of episodes that start again.
@@ -14,6 +16,7 @@ use std::sync::Arc;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::escape::{Escape, Stuck};
 use crate::frozen::{FrozenNet, State};
 use crate::net::{MASKED_Q, QNet, QNetConfig, masked_argmax};
 use phalanx_env::obs::VECTOR_LEN;
@@ -29,6 +32,9 @@ pub struct Policy {
     net: Arc<FrozenNet>,
     config: QNetConfig,
     state: Option<State>,
+    escape: Option<Escape>,
+    /// Each row's side of the escape (rows as in the last [`Policy::act_batch`]).
+    stuck: Vec<Stuck>,
 }
 
 /// Why a saved recurrent state does not fit a policy's network.
@@ -57,7 +63,25 @@ pub enum RecurrentStateError {
 impl Policy {
     /// A policy acting with a copy of `net`'s weights (`config`: its sizes).
     pub fn new(net: &QNet, config: QNetConfig) -> Self {
-        Self { net: Arc::new(net.frozen(&config)), config, state: None }
+        Self {
+            net: Arc::new(net.frozen(&config)),
+            config,
+            state: None,
+            escape: None,
+            stuck: vec![],
+        }
+    }
+
+    /// Acts with the stall escape `escape` from now on (`None`: greedy as trained, the
+    /// default); forgets the cells seen.
+    pub fn set_escape(&mut self, escape: Option<Escape>) {
+        self.escape = escape;
+        self.stuck.clear();
+    }
+
+    /// The stall escape it acts with.
+    pub fn escape(&self) -> Option<Escape> {
+        self.escape
     }
 
     /// The network sizes.
@@ -87,6 +111,7 @@ impl Policy {
     /// Forget the recurrent state of every episode (call at the start of new episodes).
     pub fn reset(&mut self) {
         self.state = None;
+        self.stuck.clear();
     }
 
     /// Forget the recurrent state of the episodes `e` with `restart[e]`, keeping the others;
@@ -94,8 +119,17 @@ impl Policy {
     pub fn reset_envs(&mut self, agents: &[usize], restart: &[bool]) {
         assert_eq!(agents.len(), restart.len(), "one flag per episode");
         if restart.iter().all(|&it| it) {
-            self.state = None;
+            self.reset();
             return;
+        }
+        let mut row = 0;
+        for (&n, &reset) in agents.iter().zip(restart) {
+            for agent in 0..n {
+                if reset && let Some(stuck) = self.stuck.get_mut(row + agent) {
+                    *stuck = Stuck::new(agent);
+                }
+            }
+            row += n;
         }
         let Some(state) = self.state.as_mut() else { return };
         let hidden = self.config.lstm_hidden;
@@ -202,12 +236,18 @@ impl Policy {
         }
         let features = self.recurrent_step(&obs);
         let mut turns = Turns::new(&obs, &self.config);
+        let mut stuck = std::mem::take(&mut self.stuck);
+        if self.escape.is_some() && stuck.len() != rows {
+            stuck = obs.iter().flat_map(|env| (0..env.n_agents).map(Stuck::new)).collect();
+        }
+        let mut escape = self.escape.map(|escape| (escape, stuck.as_mut_slice()));
         let max_agents = obs.iter().map(|env| env.n_agents).max().unwrap_or(0);
         for rank in 0..max_agents {
             let acting: Vec<usize> = (0..obs.len()).filter(|&e| rank < obs[e].n_agents).collect();
-            let q = q_out.as_deref_mut();
-            turns.act(rank, &acting, self, &features, &obs, epsilon, rng, actions, None, q);
+            let (q, escape) = (q_out.as_deref_mut(), escape.as_mut().map(|(e, s)| (*e, &mut **s)));
+            turns.act(rank, &acting, self, &features, &obs, epsilon, rng, actions, None, q, escape);
         }
+        self.stuck = stuck;
     }
 
     /// The recurrent step of every agent of every episode of `obs` (one batched pass; the
@@ -301,7 +341,9 @@ impl Turns {
     /// each with its team's message; then ε-greedy among the allowed actions, random draws
     /// episode by episode. The allowed actions are the observation's mask, or those of
     /// `masks[row]` when given (`[Σ N_e, A]`). Writes `actions[row]` and, when given, the
-    /// masked Q-values `q_out[row]`.
+    /// masked Q-values `q_out[row]`. With `escape` (the rule and every row's side of it), an
+    /// agent not acting at random by ε counts its cell and may step out of a stall
+    /// ([`crate::escape`]).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn act(
         &mut self,
@@ -315,6 +357,7 @@ impl Turns {
         actions: &mut [u8],
         masks: Option<&[bool]>,
         mut q_out: Option<&mut [f32]>,
+        mut escape: Option<(Escape, &mut [Stuck])>,
     ) {
         let (n_actions, msg_dim) = (self.n_actions, self.msg_dim);
         let cfg = policy.config();
@@ -344,10 +387,19 @@ impl Turns {
                     *value = MASKED_Q;
                 }
             }
-            let action = if rng.random::<f64>() < epsilon {
+            let random = rng.random::<f64>() < epsilon;
+            let stalled = escape.as_mut().is_some_and(|(rule, stuck)| {
+                stuck[row].visit(rule, obs[e].vec_of(agent_idx)) && !random
+            });
+            let action = if random {
                 let allowed = mask.iter().filter(|&&ok| ok).count();
                 let pick = rng.random_range(0..allowed);
                 (0..n_actions).filter(|&a| mask[a]).nth(pick).expect("pick < allowed")
+            } else if stalled
+                && let Some((rule, stuck)) = escape.as_mut()
+                && let Some(out) = stuck[row].step_out(rule, mask)
+            {
+                out
             } else {
                 masked_argmax(q, mask)
             };

@@ -1,7 +1,7 @@
 //! Decentralised runs as processes over Zenoh (docs/runtime.md): `phalanx world` and one
 //! `phalanx agent` per agent give the plan of `phalanx solve --planner pathfinding --rollouts
 //! 1` (with `--policy hrl` that of `--planner hrl`, with `--policy imitation` that of
-//! `--planner imitation`), on loopback and across two network
+//! `--planner imitation`, its stall escape included), on loopback and across two network
 //! namespaces joined by a veth pair; an agent killed mid-episode waits while the others go on
 //! and rejoins when restarted; agents stop with exit code 6 when the world is killed, for
 //! either policy. Every wait is bounded.
@@ -160,6 +160,11 @@ fn processes_over_zenoh_plan_what_the_batched_imitation_student_plans() {
     let missed = ["missed_actions", "stale_actions"].map(|k| v[k].as_u64());
     assert_eq!(missed, [Some(0); 2], "{json}");
     assert_eq!(plan(d, "proc.yaml"), plan(d, "solve.yaml"));
+    // The student's stall escape acted in both (its draws are each agent's own): without it
+    // the batched student plans otherwise.
+    let greedy = ["--rollouts", "1", "--partial", "--escape", "off", "-o", "greedy.yaml"];
+    phalanx(d, &[&solve[..], &greedy[..]].concat());
+    assert_ne!(plan(d, "greedy.yaml"), plan(d, "solve.yaml"));
 }
 
 #[test]

@@ -41,12 +41,25 @@ class Policy:
         """The vector the network reads: 3 (goal), 6 (and place) or 9 (and team)."""
         return self._net.vector_len
 
+    @property
+    def escape(self) -> str | None:
+        """The stall escape it acts with, ``"VISITS:PROB"`` (from the VISITS-th step on one
+        cell off its goal an agent takes a random allowed action with probability PROB), or
+        ``None``: the ``imitation`` student's is ``"4:0.5"``, the others act greedily as
+        trained. Set ``"off"`` or another ``"VISITS:PROB"``."""
+        return self._net.escape
+
+    @escape.setter
+    def escape(self, escape: str | None) -> None:
+        self._net.escape = escape
+
     def reset(self) -> None:
-        """Forgets the recurrent state (a new episode)."""
+        """Forgets the recurrent state and the cells seen (a new episode)."""
         self._net.reset()
 
     def act(self, observations: Observations, epsilon: float = 0.0) -> dict[str, int]:
-        """Every agent's action, greedy among the allowed ones (or ε-greedy)."""
+        """Every agent's action, greedy among the allowed ones (or ε-greedy), or the stall
+        escape's random one (``escape``)."""
         names = list(observations)
         obs = [observations[name] for name in names]
         grid = np.ascontiguousarray(

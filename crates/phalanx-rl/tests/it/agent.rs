@@ -3,7 +3,7 @@
 //! its recurrent pass and its head in one call or apart.
 
 use phalanx_env::{EnvConfig, MarlEnv, ObsBuffers, PoolConfig, PoolEnv, Task};
-use phalanx_rl::{AgentError, AgentPolicy};
+use phalanx_rl::{AgentError, AgentPolicy, Escape};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -55,6 +55,50 @@ fn agents_deciding_alone_act_as_the_batched_policy() {
         }
         assert!(steps >= 20, "{n_agents} agents: the episode ran {steps} steps only");
     }
+}
+
+#[test]
+fn agents_deciding_alone_escape_stalls_as_the_batched_policy() {
+    let (mut policy, _) = phalanx_rl::models::load(None, "pathfinding").unwrap();
+    let greedy = policy.clone();
+    // Every step off the goal counts as a stall: the escape acts often.
+    policy.set_escape(Some(Escape { visits: 1, prob: 0.3 }));
+    let pool = PoolConfig { n_maps: 3, ..PoolConfig::default() };
+    let n_agents = 4;
+    let mut env = PoolEnv::new(Task::PathFinding, &pool, EnvConfig::default(), n_agents).unwrap();
+    let mut obs = ObsBuffers::new(n_agents, env.obs_shape());
+    let (mut escaped, mut steps) = (0, 0);
+    for seed in 0..3 {
+        env.reset(seed, &mut obs);
+        let (mut team, mut plain) = (policy.clone(), greedy.clone());
+        team.reset();
+        plain.reset();
+        let mut agents: Vec<AgentPolicy> =
+            (0..n_agents).map(|a| AgentPolicy::new(policy.clone(), a).unwrap()).collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let (mut batched, mut alone, mut base) =
+            (vec![0_u8; n_agents], vec![0; n_agents], vec![0; n_agents]);
+        for step in 0..96 {
+            team.act(&obs, 0.0, &mut rng, &mut batched);
+            plain.act(&obs, 0.0, &mut rng, &mut base);
+            let mut earlier = Vec::new();
+            for &agent in &obs.order {
+                let mask = obs.mask_of(agent);
+                let action =
+                    agents[agent].act(obs.grid_of(agent), obs.vec_of(agent), mask, &earlier);
+                alone[agent] = action.unwrap();
+                earlier.push((agent, alone[agent]));
+            }
+            assert_eq!(alone, batched, "episode {seed}, step {step}");
+            escaped += usize::from(batched != base);
+            steps += 1;
+            let out = env.step(&batched, &mut obs);
+            if out.terminated || out.truncated {
+                break;
+            }
+        }
+    }
+    assert!(escaped >= 20, "the escape changed {escaped} of {steps} steps");
 }
 
 #[test]
