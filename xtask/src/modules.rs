@@ -17,6 +17,7 @@ pub type Graph = BTreeMap<String, BTreeSet<String>>;
 /// phalanx-rl's modules that acting and deployment link: none imports a training module.
 pub const RL_INFERENCE: &[&str] = &[
     "agent",
+    "escape",
     "eval",
     "frozen",
     "hierarchy",
