@@ -166,19 +166,7 @@ impl LowLevel {
             turns = Turns::new(&pf_obs, self.pathfinding.config());
             let policy = &self.pathfinding;
             let (features, obs) = (&pf_features, &pf_obs);
-            turns.act(
-                0,
-                &pf_leaders,
-                policy,
-                features,
-                obs,
-                epsilon,
-                rng,
-                actions,
-                None,
-                None,
-                None,
-            );
+            turns.act(0, &pf_leaders, policy, features, obs, epsilon, rng, actions, None, None);
         }
         for (e, env) in envs.iter_mut().enumerate() {
             let moved = !formation(e, leaders[e]);
@@ -188,19 +176,7 @@ impl LowLevel {
         let fm_obs: Vec<&ObsBuffers> = envs.iter().map(HierEnv::formation_obs).collect();
         let fm_features = self.formation.recurrent_step(&fm_obs);
         let (pf, fm) = (&self.pathfinding, &self.formation);
-        turns.act(
-            0,
-            &fm_leaders,
-            fm,
-            &fm_features,
-            &fm_obs,
-            epsilon,
-            rng,
-            actions,
-            None,
-            None,
-            None,
-        );
+        turns.act(0, &fm_leaders, fm, &fm_features, &fm_obs, epsilon, rng, actions, None, None);
         let max_agents = envs.iter().map(HierEnv::n_agents).max().unwrap_or(0);
         let mut masks = vec![false; rows * N_ACTIONS];
         for rank in 1..max_agents {
@@ -219,32 +195,8 @@ impl LowLevel {
                 }
             }
             let m = Some(masks.as_slice());
-            turns.act(
-                rank,
-                &pf_group,
-                pf,
-                &pf_features,
-                &pf_obs,
-                epsilon,
-                rng,
-                actions,
-                m,
-                None,
-                None,
-            );
-            turns.act(
-                rank,
-                &fm_group,
-                fm,
-                &fm_features,
-                &fm_obs,
-                epsilon,
-                rng,
-                actions,
-                m,
-                None,
-                None,
-            );
+            turns.act(rank, &pf_group, pf, &pf_features, &pf_obs, epsilon, rng, actions, m, None);
+            turns.act(rank, &fm_group, fm, &fm_features, &fm_obs, epsilon, rng, actions, m, None);
         }
     }
 }

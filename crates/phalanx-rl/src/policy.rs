@@ -235,17 +235,17 @@ impl Policy {
             assert_eq!(q.len(), rows * self.config.n_actions, "one Q row per agent");
         }
         let features = self.recurrent_step(&obs);
-        let mut turns = Turns::new(&obs, &self.config);
         let mut stuck = std::mem::take(&mut self.stuck);
         if self.escape.is_some() && stuck.len() != rows {
             stuck = obs.iter().flat_map(|env| (0..env.n_agents).map(Stuck::new)).collect();
         }
-        let mut escape = self.escape.map(|escape| (escape, stuck.as_mut_slice()));
+        let escape = self.escape.map(|escape| (escape, stuck.as_mut_slice()));
+        let mut turns = Turns::new(&obs, &self.config).escaping(escape);
         let max_agents = obs.iter().map(|env| env.n_agents).max().unwrap_or(0);
         for rank in 0..max_agents {
             let acting: Vec<usize> = (0..obs.len()).filter(|&e| rank < obs[e].n_agents).collect();
-            let (q, escape) = (q_out.as_deref_mut(), escape.as_mut().map(|(e, s)| (*e, &mut **s)));
-            turns.act(rank, &acting, self, &features, &obs, epsilon, rng, actions, None, q, escape);
+            let q = q_out.as_deref_mut();
+            turns.act(rank, &acting, self, &features, &obs, epsilon, rng, actions, None, q);
         }
         self.stuck = stuck;
     }
@@ -315,24 +315,34 @@ impl Policy {
 /// and the turns carry each team's message (the one-hot actions chosen at earlier ranks,
 /// whichever policy chose them) from rank to rank. Every policy of a step must share the
 /// action count and agent slots, so the message means the same to every one.
-pub(crate) struct Turns {
+pub(crate) struct Turns<'s> {
     offsets: Vec<usize>,
     /// `[E, M]`, one message per episode.
     messages: Vec<f32>,
     n_actions: usize,
     msg_dim: usize,
+    /// The stall escape and every row's side of it, when the policy has one.
+    escape: Option<(Escape, &'s mut [Stuck])>,
 }
 
-impl Turns {
+impl<'s> Turns<'s> {
     /// Turns for the episodes of `obs` (their agent counts), for policies of `config`'s
     /// action count and agent slots.
-    pub(crate) fn new(obs: &[&ObsBuffers], config: &QNetConfig) -> Turns {
+    pub(crate) fn new(obs: &[&ObsBuffers], config: &QNetConfig) -> Turns<'s> {
         Turns {
             offsets: row_offsets(obs.iter().map(|env| env.n_agents)),
             messages: vec![0.0; obs.len() * config.message_dim()],
             n_actions: config.n_actions,
             msg_dim: config.message_dim(),
+            escape: None,
         }
+    }
+
+    /// The same turns, every row acting with the stall escape `escape` (the rule and each
+    /// row's side of it, rows as in `obs`): an agent not acting at random by ε counts its
+    /// cell and may step out of a stall ([`crate::escape`]).
+    pub(crate) fn escaping(self, escape: Option<(Escape, &'s mut [Stuck])>) -> Turns<'s> {
+        Turns { escape, ..self }
     }
 
     /// The agents at `rank` of the episodes `episodes` (ascending, each with more than `rank`
@@ -341,9 +351,7 @@ impl Turns {
     /// each with its team's message; then ε-greedy among the allowed actions, random draws
     /// episode by episode. The allowed actions are the observation's mask, or those of
     /// `masks[row]` when given (`[Σ N_e, A]`). Writes `actions[row]` and, when given, the
-    /// masked Q-values `q_out[row]`. With `escape` (the rule and every row's side of it), an
-    /// agent not acting at random by ε counts its cell and may step out of a stall
-    /// ([`crate::escape`]).
+    /// masked Q-values `q_out[row]`; with [`Turns::escaping`], a stalled agent may step out.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn act(
         &mut self,
@@ -357,7 +365,6 @@ impl Turns {
         actions: &mut [u8],
         masks: Option<&[bool]>,
         mut q_out: Option<&mut [f32]>,
-        mut escape: Option<(Escape, &mut [Stuck])>,
     ) {
         let (n_actions, msg_dim) = (self.n_actions, self.msg_dim);
         let cfg = policy.config();
@@ -388,7 +395,7 @@ impl Turns {
                 }
             }
             let random = rng.random::<f64>() < epsilon;
-            let stalled = escape.as_mut().is_some_and(|(rule, stuck)| {
+            let stalled = self.escape.as_mut().is_some_and(|(rule, stuck)| {
                 stuck[row].visit(rule, obs[e].vec_of(agent_idx)) && !random
             });
             let action = if random {
@@ -396,7 +403,7 @@ impl Turns {
                 let pick = rng.random_range(0..allowed);
                 (0..n_actions).filter(|&a| mask[a]).nth(pick).expect("pick < allowed")
             } else if stalled
-                && let Some((rule, stuck)) = escape.as_mut()
+                && let Some((rule, stuck)) = self.escape.as_mut()
                 && let Some(out) = stuck[row].step_out(rule, mask)
             {
                 out
