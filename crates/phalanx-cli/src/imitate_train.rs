@@ -8,9 +8,10 @@
 //!   by the expert), each written atomically once and read again on resume;
 //! - `checkpoint` (learner, optimiser, RNG, counters) every `checkpoint_every` updates and
 //!   at the end of every round; `round-K.bin`, the policy at the end of round K;
-//! - `validation.jsonl`, one line per round: the greedy student on the first
+//! - `validation.jsonl`, one line per round (and, with `validate_every`, one per that many
+//!   updates, each snapshot kept as `update-N.bin`): the greedy student on the first
 //!   `validation_maps` instances of every Table II row of the validation stream;
-//! - `policy.bin`, the round with the best validation figures (success, then loss), and
+//! - `policy.bin`, the snapshot with the best validation figures (success, then loss), and
 //!   `metrics.jsonl` and `curves.svg`, the step axis counting updates.
 
 use std::fs;
@@ -43,7 +44,8 @@ pub(crate) struct ImitationArgs {
     pub(crate) maps: Vec<PathBuf>,
 }
 
-/// One round's validation figures (a line of `validation.jsonl`).
+/// One snapshot's validation figures (a line of `validation.jsonl`): a round's end, or
+/// `validate_every` updates within it.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct Validation {
     round: u32,
@@ -138,6 +140,14 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
             if updates.is_multiple_of(config.checkpoint_every) && updates < end {
                 save(&learner, dir, &mut sink)?;
             }
+            if config.validate_every.is_some_and(|every| updates.is_multiple_of(every))
+                && updates < end
+            {
+                let snapshot = dir.join(format!("update-{updates}.bin"));
+                bar.suspend(|| {
+                    keep_best(&learner, &snapshot, &validation, round, dir, &mut sink, &mut best)
+                })?;
+            }
         }
         bar.finish_and_clear();
         let updates = learner.counters().updates;
@@ -147,22 +157,7 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
         }
         // The end of a round: its policy, its validation, the best so far as policy.bin.
         let snapshot = dir.join(format!("round-{round}.bin"));
-        util::written(learner.save_policy(&snapshot), &snapshot)?;
-        let figures = validate(&learner.policy(), &validation, round, updates)?;
-        sink.record(metrics::VAL_SUCCESS, updates, figures.success)?;
-        sink.record(metrics::VAL_FORMATION_LOSS, updates, figures.formation_loss)?;
-        append_validation(dir, &figures)?;
-        util::warn(&format!(
-            "round {round}: validation success {:.3}, Table II loss {:.3} (mean over the rows)",
-            figures.success, figures.formation_loss
-        ));
-        if best.as_ref().is_none_or(|b| figures.beats(b)) {
-            let policy = dir.join("policy.bin");
-            let bytes =
-                fs::read(&snapshot).with_context(|| format!("reading {}", snapshot.display()))?;
-            util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)?;
-            best = Some(figures);
-        }
+        keep_best(&learner, &snapshot, &validation, round, dir, &mut sink, &mut best)?;
         save(&learner, dir, &mut sink)?;
         if updates >= stop {
             break;
@@ -233,6 +228,38 @@ impl Metrics {
     }
 }
 
+/// Writes the learner's policy to `snapshot`, validates it (a line of `validation.jsonl`, the
+/// metrics) and makes it `policy.bin` when it beats `best`.
+fn keep_best(
+    learner: &Learner,
+    snapshot: &Path,
+    validation: &[(String, Vec<Instance>)],
+    round: u32,
+    dir: &Path,
+    sink: &mut Metrics,
+    best: &mut Option<Validation>,
+) -> anyhow::Result<()> {
+    util::written(learner.save_policy(snapshot), snapshot)?;
+    let updates = learner.counters().updates;
+    let figures = validate(&learner.policy(), validation, round, updates)?;
+    sink.record(metrics::VAL_SUCCESS, updates, figures.success)?;
+    sink.record(metrics::VAL_FORMATION_LOSS, updates, figures.formation_loss)?;
+    append_validation(dir, &figures)?;
+    util::warn(&format!(
+        "round {round}, {updates} updates: validation success {:.3}, Table II loss {:.3} (mean \
+         over the rows)",
+        figures.success, figures.formation_loss
+    ));
+    if best.as_ref().is_none_or(|b| figures.beats(b)) {
+        let policy = dir.join("policy.bin");
+        let bytes =
+            fs::read(snapshot).with_context(|| format!("reading {}", snapshot.display()))?;
+        util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)?;
+        *best = Some(figures);
+    }
+    Ok(())
+}
+
 /// The metrics flushed, then the checkpoint written atomically.
 fn save(learner: &Learner, dir: &Path, sink: &mut Metrics) -> anyhow::Result<()> {
     sink.flush()?;
@@ -250,6 +277,7 @@ fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
         let name = path.file_name().and_then(|it| it.to_str()).unwrap_or_default();
         let stale = name == "validation.jsonl"
             || name.strip_prefix("round-").is_some_and(|it| it.ends_with(".bin"))
+            || name.strip_prefix("update-").is_some_and(|it| it.ends_with(".bin"))
             || name.strip_prefix("data-").is_some_and(|it| it != "0.bin" && it.ends_with(".bin"));
         if stale {
             util::written(fs::remove_file(&path), &path)?;
@@ -381,12 +409,12 @@ fn validate(
     })
 }
 
-/// Appends a round's figures to `DIR/validation.jsonl`, dropping lines of this round or
-/// later (a resumed run repeats the round it was in).
+/// Appends a snapshot's figures to `DIR/validation.jsonl`, dropping lines of as many
+/// updates or more (a resumed run repeats what came after its checkpoint).
 fn append_validation(dir: &Path, figures: &Validation) -> anyhow::Result<()> {
     let path = dir.join("validation.jsonl");
     let mut kept: Vec<Validation> =
-        read_validations(&path)?.into_iter().filter(|it| it.round < figures.round).collect();
+        read_validations(&path)?.into_iter().filter(|it| it.updates < figures.updates).collect();
     kept.push(figures.clone());
     let text: String = kept
         .iter()

@@ -55,3 +55,50 @@ fn an_imitation_run_stopped_anywhere_resumes_exactly() {
     let (_, stderr) = check(&phalanx(d, &flag), 2);
     assert!(stderr.contains("--idle-cost"), "{stderr}");
 }
+
+#[test]
+fn validating_within_a_round_keeps_the_best_snapshot_and_resumes_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let config = CONFIG.replace(r#""rounds": 2"#, r#""rounds": 0, "validate_every": 2"#);
+    std::fs::write(d.join("cfg.json"), config).unwrap();
+    let train = |out: &str, extra: &[&str]| {
+        let args = [&["train", "imitation", "--config", "cfg.json", "--out", out][..], extra];
+        phalanx(d, &args.concat())
+    };
+    check(&train("whole", &[]), 0);
+    check(&train("parts", &["--steps", "3"]), 0);
+    check(&train("parts", &["--resume"]), 0);
+    let read = |run: &str, file: &str| std::fs::read(d.join(run).join(file)).unwrap();
+    for file in ["validation.jsonl", "policy.bin", "update-2.bin", "update-4.bin", "round-0.bin"] {
+        assert!(read("parts", file) == read("whole", file), "{file} differs");
+    }
+    // Updates 2 and 4 within cloning, 5 at its end; policy.bin is the best of them (success,
+    // then loss; the first of equals).
+    let lines: Vec<serde_json::Value> = String::from_utf8(read("whole", "validation.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    let updates: Vec<u64> = lines.iter().map(|it| it["updates"].as_u64().unwrap()).collect();
+    assert_eq!(updates, [2, 4, 5]);
+    let key = |it: &serde_json::Value| {
+        (it["success"].as_f64().unwrap(), -it["formation_loss"].as_f64().unwrap())
+    };
+    let mut best = &lines[0];
+    for it in &lines[1..] {
+        if key(it) > key(best) {
+            best = it;
+        }
+    }
+    let file = match best["updates"].as_u64().unwrap() {
+        5 => "round-0.bin".to_owned(),
+        n => format!("update-{n}.bin"),
+    };
+    assert!(read("whole", "policy.bin") == read("whole", &file), "policy.bin is not {file}");
+    // A fresh run in the folder forgets the snapshots.
+    let fresh = CONFIG.replace(r#""rounds": 2"#, r#""rounds": 0"#);
+    std::fs::write(d.join("cfg.json"), fresh).unwrap();
+    check(&train("whole", &[]), 0);
+    assert!(!d.join("whole").join("update-2.bin").exists());
+}

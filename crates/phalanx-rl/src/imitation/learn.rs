@@ -71,6 +71,12 @@ pub struct ImitationConfig {
     pub init_from: Option<PathBuf>,
     /// Validation after every round: this many instances of every Table II row.
     pub validation_maps: u64,
+    /// Validation also every this many updates within a round (`None`: at the end of every
+    /// round only, as the shipped student). A student's closed-loop figures swing between
+    /// snapshots of one cloning run (docs/experiments.md, 2026-12-05 night): validating
+    /// more often lets `policy.bin` be the best of them. Not written when `None`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validate_every: Option<u64>,
     /// The seed of the validation stream (the benchmark's test stream is seed 11).
     pub validation_seed: u64,
     /// Validate on the rows of maps at most this side only (`None`: every row).
@@ -101,6 +107,7 @@ impl Default for ImitationConfig {
             checkpoint_every: 250,
             init_from: None,
             validation_maps: 10,
+            validate_every: None,
             validation_seed: 1,
             validation_max_side: None,
         }
@@ -172,8 +179,8 @@ impl ImitationConfig {
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(format!("lr: {} is not a positive number", self.lr));
         }
-        if self.batch_size == 0 || self.checkpoint_every == 0 {
-            return Err("batch_size and checkpoint_every must be at least 1".into());
+        if self.batch_size == 0 || self.checkpoint_every == 0 || self.validate_every == Some(0) {
+            return Err("batch_size, checkpoint_every and validate_every must be at least 1".into());
         }
         if let SequenceMode::Windows { len: 0, .. } = self.sequence {
             return Err("sequence: windows of 0 transitions".into());
@@ -440,6 +447,7 @@ mod tests {
     fn bad_settings_name_the_field() {
         let bad = |text: &str| ImitationConfig::from_json(text).unwrap_err();
         assert!(bad(r#"{"lr": -1}"#).contains("lr"));
+        assert!(bad(r#"{"validate_every": 0}"#).contains("validate_every"));
         assert!(bad(r#"{"round_epsilon": 2}"#).contains("round_epsilon"));
         assert!(bad(r#"{"net": {"n_actions": 2}}"#).contains("5 actions"));
         assert!(bad(r#"{"data": {"agents": [9]}}"#).contains("data.agents"));
