@@ -137,9 +137,8 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
                 "| round {round} of {}, loss {:.3}, accuracy {:.3}",
                 config.rounds, stats.loss, stats.accuracy
             ));
-            if updates.is_multiple_of(config.checkpoint_every) && updates < end {
-                save(&learner, dir, &mut sink)?;
-            }
+            // Validated before the checkpoint of the same update: a run stopped between
+            // the two resumes before both and validates again.
             if config.validate_every.is_some_and(|every| updates.is_multiple_of(every))
                 && updates < end
             {
@@ -147,6 +146,9 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
                 bar.suspend(|| {
                     keep_best(&learner, &snapshot, &validation, round, dir, &mut sink, &mut best)
                 })?;
+            }
+            if updates.is_multiple_of(config.checkpoint_every) && updates < end {
+                save(&learner, dir, &mut sink)?;
             }
         }
         bar.finish_and_clear();

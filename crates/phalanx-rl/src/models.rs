@@ -143,10 +143,9 @@ pub fn load_with_header(
         Some(path) if path.is_file() => path.to_path_buf(),
         other => weights_file(other, name)?,
     };
-    let (policy, header) = load_policy_any(&file, &Device::flex())
+    let (mut policy, header) = load_policy_any(&file, &Device::flex())
         .map_err(|source| ModelError::Load { name: name.to_owned(), source })?;
     check_kind(&file, &header, name)?;
-    let mut policy = policy;
     if name == "imitation" {
         policy.set_escape(Some(Escape::STUDENT));
     }

@@ -67,9 +67,19 @@ fn validating_within_a_round_keeps_the_best_snapshot_and_resumes_exactly() {
         phalanx(d, &args.concat())
     };
     check(&train("whole", &[]), 0);
-    check(&train("parts", &["--steps", "3"]), 0);
-    check(&train("parts", &["--resume"]), 0);
+    // Stopped at a checkpoint (3), and where a validation and a checkpoint fall together.
+    let config = CONFIG.replace(r#""rounds": 2"#, r#""rounds": 0, "validate_every": 3"#);
+    std::fs::write(d.join("cfg3.json"), config).unwrap();
+    for (out, steps) in [("parts", "3"), ("at3", "3")] {
+        let cfg = if out == "parts" { "cfg.json" } else { "cfg3.json" };
+        let args = ["train", "imitation", "--config", cfg, "--out", out, "--steps", steps];
+        check(&phalanx(d, &args), 0);
+        check(&phalanx(d, &["train", "imitation", "--resume", "--out", out]), 0);
+    }
     let read = |run: &str, file: &str| std::fs::read(d.join(run).join(file)).unwrap();
+    assert_eq!(learning(&d.join("parts")), learning(&d.join("whole")), "the metrics differ");
+    let at3 = String::from_utf8(read("at3", "validation.jsonl")).unwrap();
+    assert_eq!(at3.lines().count(), 2, "{at3}");
     for file in ["validation.jsonl", "policy.bin", "update-2.bin", "update-4.bin", "round-0.bin"] {
         assert!(read("parts", file) == read("whole", file), "{file} differs");
     }
