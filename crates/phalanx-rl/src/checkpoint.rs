@@ -64,7 +64,7 @@ impl Learner {
     }
 
     /// Write only what acting needs (the header and the online network) to `path`
-    /// atomically: a policy file for [`load_policy`], a quarter of a checkpoint's size.
+    /// atomically: a policy file for [`crate::policy_file::load_policy`], a quarter of a checkpoint's size.
     pub fn save_policy(&self, path: &Path) -> Result<(), CheckpointError> {
         let header = serde_json::to_vec_pretty(&self.header()).expect("header serialises");
         let online = self

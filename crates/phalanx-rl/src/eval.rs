@@ -2,7 +2,7 @@
 //!
 //! A low-level policy runs each instance as one episode of a [`TaskEnv`] of its task (its
 //! rewards, clipping and leader rule); the hierarchy ([`Hierarchy`]) runs it as a
-//! [`HierEnv`] (the meta policy choosing each agent's low-level policy every step). Policies
+//! [`phalanx_env::HierEnv`] (the meta policy choosing each agent's low-level policy every step). Policies
 //! act greedily (ε = 0) in leader order with action messages, until the task terminates (all
 //! agents on their goals; for [`Task::Formation`], `L_f = 0`) or the step limit truncates
 //! it. Instances go through in batches of `batch` episodes, one batched policy call per step;
@@ -171,7 +171,7 @@ pub fn evaluate_at(
     Ok(res)
 }
 
-/// [`evaluate`] for the hierarchy: every instance as a meta-task episode ([`HierEnv`]).
+/// [`evaluate`] for the hierarchy: every instance as a meta-task episode ([`phalanx_env::HierEnv`]).
 ///
 /// # Errors
 /// If the simulator refuses an instance (field of view, agent count).

@@ -566,7 +566,7 @@ impl Hierarchy {
     }
 
     /// One step of the running episodes: the meta policy chooses every agent's low-level
-    /// policy (greedily), the low level acts ([`LowLevel::act`]: a random allowed action with
+    /// policy (greedily), the low level acts (`LowLevel::act`: a random allowed action with
     /// probability `epsilon`, drawn from `rng`), and each episode `e` with `running[e]` applies
     /// its joint action; `outs[e]` is that step's outcome (`None` for an episode not
     /// stepped). Every episode takes part in the choices and the actions, stepped or not, so

@@ -14,7 +14,7 @@
 //!   [`Sample`] per agent and step in the acting order: the agent's own observation (its
 //!   `[4, F, F]` channels, goal vector and mask), the message of the expert's actions of the
 //!   agents ranked before it, and the expert's action for it as the target.
-//! - [`file`] is the on-disk format (a versioned, checksummed header and episodes).
+//! - [`file`](mod@file) is the on-disk format (a versioned, checksummed header and episodes).
 //! - [`generate_with`] makes a DAgger round's data: the student moves the team, the expert
 //!   labels every state it reaches; [`learn`] trains the student on the data (cloning, then
 //!   DAgger rounds).

@@ -31,7 +31,7 @@ pub struct MetaEnvConfig {
 
 /// The meta policy's training environment: a [`HierEnv`] on the training pool, whose actions
 /// are the agents' meta choices; inside each step the frozen low level acts greedily
-/// ([`LowLevel::act`]). Resets draw the map and the start and goal formation
+/// (`LowLevel::act`). Resets draw the map and the start and goal formation
 /// ([`TrainPool::sample_episode`]: wide in a share of the episodes) from the reset's seed.
 #[derive(Clone, Debug)]
 pub struct MetaEnv {
