@@ -86,8 +86,8 @@ pub(crate) struct EvalCmd {
     /// The policy to evaluate.
     #[arg(long, value_enum)]
     policy: PolicyName,
-    /// Directory with policy.bin or checkpoint (default: the shipped models/<policy>; for
-    /// hrl, the meta policy's, models/meta).
+    /// Directory with policy.bin or checkpoint (default: the shipped `models/<policy>`;
+    /// for hrl, the meta policy's, `models/meta`).
     #[arg(long, value_name = "DIR")]
     weights: Option<PathBuf>,
     /// Number of fresh maps (one episode each).

@@ -2,7 +2,7 @@
 //! instances, each run scored by the one validator and `PlanMetrics`
 //! ([`phalanx_plan::SolveSummary`]).
 //!
-//! - [`bench`]: the runs of a benchmark, one at a time, in a fixed order;
+//! - [`mod@bench`]: the runs of a benchmark, one at a time, in a fixed order;
 //! - [`Method`]: a named solver (a classical planner with its budget, the path-finding policy
 //!   alone, or a hierarchy over the low level) run on one instance at a time;
 //! - [`named`]: methods by name (`cbs:plain`, `ecbs:1.5`, `hrl:2`, …), as the command line

@@ -172,14 +172,14 @@ fn loader_input(data: &[u8]) -> Vec<u8> {
     out
 }
 
-/// A policy file (or checkpoint) loaded for acting ([`loader_input`]).
+/// A policy file (or checkpoint) loaded for acting (`loader_input`).
 pub fn policy(data: &[u8]) {
     let file = as_file(&loader_input(data));
     let _ = phalanx_rl::policy_file::load_policy_any(file.path(), &Device::flex());
     let _ = phalanx_rl::policy_file::network_checksum(file.path());
 }
 
-/// A checkpoint loaded for training ([`loader_input`]).
+/// A checkpoint loaded for training (`loader_input`).
 pub fn checkpoint(data: &[u8]) {
     let file = as_file(&loader_input(data));
     let _ = phalanx_rl::Learner::load(file.path(), &Device::flex().autodiff());

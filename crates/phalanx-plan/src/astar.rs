@@ -1,5 +1,5 @@
 //! Prioritised planning (Silver 2005, "Cooperative Pathfinding", AIIDE) on the space-time
-//! A* of [`crate::search`]: agents plan one after another, each avoiding the paths of the
+//! A* of `crate::search`: agents plan one after another, each avoiding the paths of the
 //! agents before it, who stay at their goals afterwards.
 
 use phalanx_core::{AgentId, Instance};

@@ -5,7 +5,7 @@
 //! Stuckey, Ma, Koenig, AAAI 2019) for the rectangle symmetries that agents travelling side
 //! by side produce.
 //!
-//! The low level is the space-time A* of [`crate::search`] with a conflict-avoidance table
+//! The low level is the space-time A* of `crate::search` with a conflict-avoidance table
 //! (ties towards fewer conflicts with the other agents' paths), so the root solution is often
 //! conflict-free already.
 //!
@@ -14,7 +14,7 @@
 //! first, then semi-cardinal, then non-cardinal; among equals the earliest, then the smallest
 //! agent pair.
 //!
-//! Termination: every low-level search is finite (see [`crate::search`]), and arrival times
+//! Termination: every low-level search is finite (see `crate::search`), and arrival times
 //! are bounded by `search::joint_horizon_bound` (a plan needs fewer steps than there
 //! are joint placements), so on small unsolvable instances the constraint tree is finite and
 //! CBS returns `Unsolvable`; on large ones the budget ends it.

@@ -2,14 +2,14 @@
 //! search algorithm for the multi-agent pathfinding problem", SoCS 2014): bounded-suboptimal
 //! CBS with focal search at both levels.
 //!
-//! Low level: the focal space-time search of [`crate::search`] ([`FocalOrder`]), with the
+//! Low level: the focal space-time search of `crate::search` (`FocalOrder`), with the
 //! other agents' paths as its conflict-avoidance table. It returns a path and a lower bound
 //! on the agent's optimal cost.
 //!
 //! High level: OPEN ordered by the node's lower bound `LB` (sum of the agents' bounds); FOCAL
 //! holds the nodes with cost `<= w * LB_min`, ordered by number of conflicts, then cost, then
 //! the newer node. So the returned plan costs at most `w` times the optimum. The conflict
-//! split is the earliest conflict's standard split ([`Conflict::split`]).
+//! split is the earliest conflict's standard split (`Conflict::split`).
 //!
 //! Termination follows CBS (see [`crate::cbs`]): bounded arrival times and finite low-level
 //! searches make the constraint tree finite on small unsolvable instances.

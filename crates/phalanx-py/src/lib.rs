@@ -1,8 +1,8 @@
 //! `phalanx._phalanx`, the extension module under the Python package `phalanx`: the
-//! simulation environment with its observation buffers as NumPy arrays ([`world::World`]),
-//! many of them stepped in one call ([`vector::VecWorld`]),
-//! instances, the planners and the validator ([`toolkit`]) and the shipped policies
-//! ([`policy`]). The PettingZoo classes are the thin pure-Python layer in `python/phalanx`.
+//! simulation environment with its observation buffers as NumPy arrays (`world::World`),
+//! many of them stepped in one call (`vector::VecWorld`),
+//! instances, the planners and the validator (`toolkit`) and the shipped policies
+//! (`policy`). The PettingZoo classes are the thin pure-Python layer in `python/phalanx`.
 //!
 //! Nothing panics across the boundary: bad input comes back as `phalanx.PhalanxError` (a
 //! `ValueError`) carrying the Rust message with its causes (file, line, value).

@@ -23,7 +23,7 @@
 //! Large maps: with [`Crop::Auto`] a map wider than [`scene::AUTO_CROP_SIDE`] cells is shown
 //! through a window that follows the team, and an episode longer than
 //! [`Options::max_frames`] steps shows every `k`-th step; the obstacles drawn are those some
-//! window shows. Output is byte-deterministic (see [`svg`]).
+//! window shows. Output is byte-deterministic (see `svg`).
 //!
 //! A [`CarScene`] is the continuous counterpart: car bodies (plain [`Pose`]s in metres, as
 //! `phalanx motion` drives a plan) moving over the map, drawn by [`render_cars`] as an
@@ -235,11 +235,11 @@ pub fn png(scene: &Scene<'_>, options: &Options, step: usize) -> Result<Vec<u8>,
     raster::png(scene, &layout, options, step)
 }
 
-/// The pixels of step `step` of `scene` as [`png`] draws them: width, height and RGBA bytes
+/// The pixels of step `step` of `scene` as [`png()`] draws them: width, height and RGBA bytes
 /// (`4 × width × height`, row after row from the top; every pixel opaque).
 ///
 /// # Errors
-/// As [`png`].
+/// As [`png()`].
 pub fn rgba(
     scene: &Scene<'_>,
     options: &Options,
@@ -257,7 +257,7 @@ pub fn gif(scene: &Scene<'_>, options: &Options) -> Result<Vec<u8>, RenderError>
     gif_with_progress(scene, options, &mut |_, _| {})
 }
 
-/// [`gif`], calling `progress(done, frames)` after each frame is drawn (a long animation
+/// [`gif()`], calling `progress(done, frames)` after each frame is drawn (a long animation
 /// takes seconds a frame on a large map).
 ///
 /// # Errors

@@ -1,5 +1,5 @@
 //! What is drawn: the episode ([`Scene`]), the drawing options ([`Options`]) and what both
-//! fix before any element is written ([`Layout`]): the frames shown, the window of the map
+//! fix before any element is written (`Layout`): the frames shown, the window of the map
 //! each frame shows, the aligned target formation and `L_f` at every frame.
 
 use phalanx_core::{Cell, Grid, Instance, Plan, formation_fit, formation_loss};

@@ -9,7 +9,7 @@
 //! - [`Agent`] holds one agent's policy: it acts when it has its observation and the actions
 //!   of every agent ranked before it this step, and publishes its action; [`HierAgent`] does
 //!   the same for an agent of the hierarchy, with its choice first;
-//! - [`Transport`] carries bytes between them: [`inproc::Bus`] in one process (threads);
+//! - [`Transport`] carries bytes between them: [`inproc::bus`] in one process (threads);
 //!   a network transport between processes;
 //! - [`run_world`] and [`run_agent`] drive the machines over a transport, every wait bounded
 //!   by a timeout.
