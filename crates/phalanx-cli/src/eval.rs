@@ -109,11 +109,8 @@ pub(crate) struct EvalCmd {
     /// Which rollout counts, a solved one always first.
     #[arg(long, value_enum, default_value_t = meta::KeepArg::Fastest)]
     keep: meta::KeepArg,
-    /// Learned policies: the stall escape, `VISITS:PROB` (from the VISITS-th step on one cell
-    /// off the goal, a random allowed action with probability PROB) or `off` (default: the
-    /// policy's own: the imitation student's 4:0.5, none for the others; docs/imitation.md).
-    #[arg(long, value_name = "VISITS:PROB|off", value_parser = crate::util::escape)]
-    escape: Option<crate::util::EscapeArg>,
+    #[command(flatten)]
+    escape: meta::EscapeArgs,
     #[command(flatten)]
     leader: meta::LeaderArgs,
     /// hrl, leader: the path-finding policy's directory or file (default: the one the meta
@@ -179,9 +176,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     };
     let (mut policy, header, _) =
         models::load_with_header(Some(&file), if scripted { "pathfinding" } else { name })?;
-    if let Some(escape) = cmd.escape {
-        policy.set_escape(escape.0);
-    }
+    cmd.escape.apply(&mut policy);
     let fov = header.net_config.fov as u32;
     anyhow::ensure!(
         cmd.map.fov == fov,

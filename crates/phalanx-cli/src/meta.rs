@@ -4,7 +4,7 @@
 
 use anyhow::Context as _;
 use phalanx_rl::{
-    FormationWeight, Keep, Learner, LowLevel, MetaInfo, Policy, Rollouts, ScriptedMeta,
+    Escape, FormationWeight, Keep, Learner, LowLevel, MetaInfo, Policy, Rollouts, ScriptedMeta,
     TrainConfig, estimate_weight,
 };
 
@@ -105,6 +105,35 @@ pub(crate) struct RolloutArgs {
     /// Learned policies: which rollout counts, a solved one always first.
     #[arg(long, value_enum, default_value_t = KeepArg::Fastest)]
     keep: KeepArg,
+}
+
+/// `--escape`, the stall escape a learned policy acts with (`solve`, `eval`;
+/// [`phalanx_rl::escape`]).
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct EscapeArgs {
+    /// Learned policies: the stall escape, `VISITS:PROB` (from the VISITS-th step on one cell
+    /// off the goal, a random allowed action with probability PROB) or `off` (default: the
+    /// policy's own: the imitation student's 4:0.5, none for the others; docs/imitation.md).
+    #[arg(long, value_name = "VISITS:PROB|off", value_parser = escape)]
+    escape: Option<EscapeArg>,
+}
+
+/// A parsed `--escape`: `None` for `off`.
+#[derive(Debug, Clone, Copy)]
+struct EscapeArg(Option<Escape>);
+
+/// Reads `--escape`.
+fn escape(text: &str) -> Result<EscapeArg, String> {
+    phalanx_rl::escape::parse_escape(text).map(EscapeArg)
+}
+
+impl EscapeArgs {
+    /// `policy` acting with the escape given, or with its own when none was.
+    pub(crate) fn apply(&self, policy: &mut Policy) {
+        if let Some(EscapeArg(escape)) = self.escape {
+            policy.set_escape(escape);
+        }
+    }
 }
 
 /// `--keep`: which of an instance's rollouts counts.

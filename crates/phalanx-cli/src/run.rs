@@ -86,13 +86,10 @@ impl Vectors {
         EnvConfig { place_vector, team_vector, ..config }
     }
 
-    /// Its name on the command line.
-    fn name(self) -> &'static str {
-        match self {
-            Vectors::Goal => "goal",
-            Vectors::Place => "place",
-            Vectors::Team => "team",
-        }
+    /// Its name on the command line (clap's, the one spelling).
+    fn name(self) -> String {
+        use clap::ValueEnum as _;
+        self.to_possible_value().expect("every choice is named").get_name().to_owned()
     }
 }
 
@@ -382,7 +379,7 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     world.args(["--fov", &fov.to_string(), "--step-timeout", &cmd.step_timeout.to_string()]);
     world.args(["--policy", cmd.team.policy.name()]);
     if cmd.team.policy == TeamPolicy::Imitation {
-        world.args(["--vectors", team.vectors().name()]);
+        world.args(["--vectors", &team.vectors().name()]);
     }
     if let Some(agents) = cmd.agents {
         world.args(["--agents", &agents.to_string()]);

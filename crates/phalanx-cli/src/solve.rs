@@ -74,11 +74,8 @@ pub(crate) struct SolveCmd {
     time_limit: f64,
     #[command(flatten)]
     rollouts: meta::RolloutArgs,
-    /// Learned policies: the stall escape, `VISITS:PROB` (from the VISITS-th step on one cell
-    /// off the goal, a random allowed action with probability PROB) or `off` (default: the
-    /// policy's own: the imitation student's 4:0.5, none for the others; docs/imitation.md).
-    #[arg(long, value_name = "VISITS:PROB|off", value_parser = crate::util::escape)]
-    escape: Option<crate::util::EscapeArg>,
+    #[command(flatten)]
+    escape: meta::EscapeArgs,
     /// Learned policies: the weights directory (hrl: the meta policy's; default: the
     /// shipped models/meta or models/pathfinding).
     #[arg(long, value_name = "DIR")]
@@ -192,9 +189,7 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
         _ => "pathfinding",
     };
     let (mut policy, header, file) = models::load_with_header(cmd.weights.as_deref(), name)?;
-    if let Some(escape) = cmd.escape {
-        policy.set_escape(escape.0);
-    }
+    cmd.escape.apply(&mut policy);
     let solver = if hrl {
         let hierarchy = models::hierarchy(policy, &header, &file, None, None)?;
         Solver::Hierarchy(Box::new(hierarchy))

@@ -112,16 +112,6 @@ pub(crate) fn fraction(text: &str) -> Result<f64, String> {
     })
 }
 
-/// `--escape`: a learned policy's stall escape, `off` or `VISITS:PROB`
-/// ([`phalanx_rl::escape`]).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct EscapeArg(pub(crate) Option<phalanx_rl::Escape>);
-
-/// Reads `--escape`.
-pub(crate) fn escape(text: &str) -> Result<EscapeArg, String> {
-    phalanx_rl::escape::parse_escape(text).map(EscapeArg)
-}
-
 /// The longest duration a flag in seconds accepts (`--time-limit`, `--join-timeout`,
 /// `--silence`): about eleven days.
 pub(crate) const MAX_SECONDS: f64 = 1e6;
