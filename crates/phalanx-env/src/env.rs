@@ -32,7 +32,9 @@ const BLOCKED: u32 = u32::MAX - 1;
 
 /// One distance of a BFS map as stored: `u16` on maps of fewer padded cells than
 /// [`Distance::UNREACHABLE`] (every distance of a map is below its cell count), which halves
-/// the maps that every step reads, else `u32`.
+/// the maps that every step reads, else `u32`. The same type holds the search's queue of
+/// padded indices (every index is below the cell count too), which then stays in the
+/// first-level cache with the map.
 trait Distance: Copy + Ord + Send + Sync {
     /// A free cell cut off from the goal.
     const UNREACHABLE: Self;
@@ -46,6 +48,10 @@ trait Distance: Copy + Ord + Send + Sync {
     fn wide(self) -> u32;
     /// The distance as `f32` (exact below `BLOCKED`).
     fn float(self) -> f32;
+    /// A padded index as stored in the queue (below the map's cell count).
+    fn from_index(index: usize) -> Self;
+    /// The padded index a queue entry holds.
+    fn index(self) -> usize;
 }
 
 impl Distance for u16 {
@@ -65,6 +71,14 @@ impl Distance for u16 {
     fn float(self) -> f32 {
         f32::from(self)
     }
+    #[inline(always)]
+    fn from_index(index: usize) -> u16 {
+        index as u16
+    }
+    #[inline(always)]
+    fn index(self) -> usize {
+        usize::from(self)
+    }
 }
 
 impl Distance for u32 {
@@ -82,6 +96,14 @@ impl Distance for u32 {
     #[inline(always)]
     fn float(self) -> f32 {
         (self as i32) as f32
+    }
+    #[inline(always)]
+    fn from_index(index: usize) -> u32 {
+        index as u32
+    }
+    #[inline(always)]
+    fn index(self) -> usize {
+        self as usize
     }
 }
 
@@ -200,6 +222,8 @@ pub struct Env {
     formation_obs: Vec<f32>,
     /// One BFS queue per agent.
     queues: Vec<Vec<u32>>,
+    /// The search queue of narrow maps (searched one after the other).
+    narrow_queue: Vec<u16>,
     // Dynamic state.
     pos: Vec<Cell>,
     pos_idx: Vec<u32>,
@@ -226,7 +250,12 @@ pub struct Env {
     cancelled: Vec<bool>,
     /// Whether each agent's move lowered its distance to its goal this step.
     closer: Vec<bool>,
+    /// Whether each agent changed cells this step (all, after a reset).
+    moved: Vec<bool>,
     on_goal: Vec<bool>,
+    /// Whether an agent reached or left its goal this step (true after a reset): the cost
+    /// channel marks other agents standing on their goals.
+    goals_changed: bool,
     loss: f64,
     // Sequential acting.
     order: Vec<u16>,
@@ -272,6 +301,7 @@ impl Env {
             ident: Vec::new(),
             formation_obs: Vec::new(),
             queues: Vec::new(),
+            narrow_queue: Vec::new(),
             pos: Vec::new(),
             pos_idx: Vec::new(),
             own_dist: Vec::new(),
@@ -287,6 +317,8 @@ impl Env {
             rewards: Vec::new(),
             cancelled: Vec::new(),
             closer: Vec::new(),
+            moved: Vec::new(),
+            goals_changed: true,
             on_goal: Vec::new(),
             loss: 0.0,
             order: Vec::new(),
@@ -392,6 +424,9 @@ impl Env {
         self.cancelled.resize(n, false);
         self.closer.clear();
         self.closer.resize(n, false);
+        self.moved.clear();
+        self.moved.resize(n, true);
+        self.goals_changed = true;
         self.on_goal.clear();
         self.on_goal.extend(self.pos_idx.iter().zip(&self.goal_idx).map(|(p, g)| p == g));
         self.parked.clear();
@@ -440,14 +475,16 @@ impl Env {
         let narrow = n_padded < usize::from(u16::MAX - 1);
         match (&mut self.dist, narrow) {
             (DistMaps::Narrow(maps), true) => {
-                search_maps(maps, &self.blocked, &self.goal_idx, &mut self.queues, pw);
+                let queue = std::slice::from_mut(&mut self.narrow_queue);
+                search_maps(maps, &self.blocked, &self.goal_idx, queue, pw);
             }
             (DistMaps::Wide(maps), false) => {
                 search_maps(maps, &self.blocked, &self.goal_idx, &mut self.queues, pw);
             }
             (dist, true) => {
                 let mut maps = Vec::new();
-                search_maps(&mut maps, &self.blocked, &self.goal_idx, &mut self.queues, pw);
+                let queue = std::slice::from_mut(&mut self.narrow_queue);
+                search_maps(&mut maps, &self.blocked, &self.goal_idx, queue, pw);
                 *dist = DistMaps::Narrow(maps);
             }
             (dist, false) => {
@@ -608,6 +645,7 @@ impl Env {
             self.pos_idx[i] = to;
             // The action's displacement, or none for a stayer (a table, not a branch).
             let (dx, dy) = CELL_DELTAS[action.index()];
+            self.moved[i] = from != to;
             let moved = i32::from(from != to);
             self.pos[i] = self.pos[i].offset(dx * moved, dy * moved);
             let d = self.dist.at(i * n_padded + to as usize);
@@ -616,11 +654,14 @@ impl Env {
         }
         self.t += 1;
         let mut all_on_goal = true;
+        let mut goals_changed = false;
         for ((on, &p), &g) in self.on_goal.iter_mut().zip(&self.pos_idx).zip(&self.goal_idx) {
+            goals_changed |= *on != (p == g);
             *on = p == g;
             all_on_goal &= *on;
             self.parked[g as usize] = u8::from(*on);
         }
+        self.goals_changed = goals_changed;
         self.loss = formation_loss(&self.pos, &self.goals);
         let terminated = match self.config.task {
             Task::Formation => self.loss == 0.0,
@@ -850,17 +891,27 @@ impl Env {
         self.write_channels(agent, out, true);
     }
 
-    /// Writes agent `agent`'s obstacle, position and cost channels into `out` (`[4, F, F]`,
-    /// as [`Env::write_grid`]) and leaves its formation channel as it is: that channel is
-    /// the same throughout an episode, so a writer that wrote the episode's first
-    /// observation into `out` with [`Env::write_grid`] need not copy it again every step.
+    /// Writes into `out` (`[4, F, F]`, as [`Env::write_grid`]) those of agent `agent`'s
+    /// channels that may have changed since the previous step, for a writer that keeps
+    /// agent `agent`'s observations in `out`: written with [`Env::write_grid`] when the
+    /// episode started, then with this after every step. The position channel is always
+    /// written; the obstacle and cost channels only when the agent changed cells or an agent
+    /// reached or left its goal in the last step (the cost channel marks the agents that
+    /// stand on their goals); the formation channel is the same throughout an episode and
+    /// never written. The result equals [`Env::write_grid`]'s bit for bit.
     pub fn write_grid_changing(&self, agent: usize, out: &mut [f32]) {
         self.write_channels(agent, out, false);
     }
 
-    /// The channels, the formation channel too when `formation`.
+    /// The channels, the formation channel too when `formation`; without it, only the
+    /// position channel when the agent stayed and no agent reached or left its goal
+    /// ([`Env::write_grid_changing`]).
     #[inline]
     fn write_channels(&self, agent: usize, out: &mut [f32], formation: bool) {
+        if !formation && !self.moved[agent] && !self.goals_changed {
+            self.write_positions(agent, out);
+            return;
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor has AVX2, checked just above.
@@ -868,6 +919,29 @@ impl Env {
             return;
         }
         self.write_grid_any(agent, out, formation);
+    }
+
+    /// Writes agent `agent`'s position channel alone (the second of `out`'s four).
+    fn write_positions(&self, agent: usize, out: &mut [f32]) {
+        // Rows of a known length for the usual fields of view (copied inline).
+        match self.fov {
+            9 => self.write_positions_of(9, agent, out),
+            11 => self.write_positions_of(11, agent, out),
+            f => self.write_positions_of(f, agent, out),
+        }
+    }
+
+    /// [`Env::write_positions`] for `f == self.fov`.
+    #[inline(always)]
+    fn write_positions_of(&self, f: usize, agent: usize, out: &mut [f32]) {
+        let pw = self.pw;
+        let ff = f * f;
+        assert_eq!(out.len(), CHANNELS * ff, "channel buffer of another size");
+        let corner = self.pos_idx[agent] as usize - self.pad * pw - self.pad;
+        let occ = &self.occ_obs[corner..corner + (f - 1) * pw + f];
+        for (r, row) in out[ff..2 * ff].chunks_exact_mut(f).enumerate() {
+            row.copy_from_slice(&occ[r * pw..r * pw + f]);
+        }
     }
 
     /// [`Env::write_grid`] compiled for AVX2 (eight lanes a row of the window instead of
@@ -1095,7 +1169,7 @@ fn search_maps<D: Distance>(
     maps: &mut Vec<D>,
     blocked: &[u8],
     goal_idx: &[u32],
-    queues: &mut [Vec<u32>],
+    queues: &mut [Vec<D>],
     pw: usize,
 ) {
     let (n, n_padded) = (goal_idx.len(), blocked.len());
@@ -1134,25 +1208,44 @@ fn padded_idx(pw: usize, pad: usize, c: Cell) -> u32 {
 /// Branch-free inner step: every neighbour is written to the queue's tail, and the tail
 /// only advances (and the distance only changes) when the neighbour is new, which avoids
 /// the mispredicted branch per neighbour.
-fn padded_bfs<D: Distance>(pw: usize, source: u32, dist: &mut [D], queue: &mut Vec<u32>) {
+fn padded_bfs<D: Distance>(pw: usize, source: u32, dist: &mut [D], queue: &mut Vec<D>) {
+    // The frame: the first and last rows and columns are blocked, so that a free cell's four
+    // neighbours are in the buffer (checked here, in time linear in the perimeter, so that the
+    // search can index without checks).
+    let len = dist.len();
+    assert!(pw >= 3 && len.is_multiple_of(pw) && len / pw >= 3, "a padded grid of at least 3x3");
+    let frame = |i: usize| dist[i] == D::BLOCKED;
+    assert!(
+        (0..pw).all(|x| frame(x) && frame(len - pw + x))
+            && (0..len / pw).all(|y| frame(y * pw) && frame(y * pw + pw - 1)),
+        "the padding is blocked"
+    );
+    assert!(dist[source as usize] == D::UNREACHABLE, "the search starts on a free cell");
     // At most every cell enters the queue once, plus one speculative write.
-    if queue.len() < dist.len() + 1 {
-        queue.resize(dist.len() + 1, 0);
+    if queue.len() < len + 1 {
+        queue.resize(len + 1, D::ZERO);
     }
-    let queue = &mut queue[..];
+    let queue = &mut queue[..len + 1];
     dist[source as usize] = D::ZERO;
-    queue[0] = source;
+    queue[0] = D::from_index(source as usize);
     let (mut head, mut tail) = (0, 1);
     while head < tail {
-        let id = queue[head] as usize;
-        head += 1;
-        let next = dist[id].plus_one();
-        for n in [id + pw, id - pw, id - 1, id + 1] {
-            let d = dist[n];
-            let fresh = d == D::UNREACHABLE;
-            queue[tail] = n as u32;
-            tail += usize::from(fresh);
-            dist[n] = if fresh { next } else { d };
+        // SAFETY: the queue holds free cells only (a cell enters it when it was
+        // `UNREACHABLE`, which only a free cell is, and at most once, as it then gets its
+        // distance), so `head < tail <= len` (and the speculative write at `tail <= len` is
+        // within the `len + 1` slots); a free cell is off the blocked frame, so its
+        // neighbours `id ± 1` and `id ± pw` are within `0..len`.
+        unsafe {
+            let id = queue.get_unchecked(head).index();
+            head += 1;
+            let next = dist.get_unchecked(id).plus_one();
+            for n in [id + pw, id - pw, id - 1, id + 1] {
+                let d = *dist.get_unchecked(n);
+                let fresh = d == D::UNREACHABLE;
+                *queue.get_unchecked_mut(tail) = D::from_index(n);
+                tail += usize::from(fresh);
+                *dist.get_unchecked_mut(n) = if fresh { next } else { d };
+            }
         }
     }
 }
@@ -1227,10 +1320,14 @@ mod tests {
     #[test]
     fn the_changing_channels_over_the_first_observation_equal_the_whole_observation() {
         let mut rng = ChaCha8Rng::seed_from_u64(43);
-        for case in 0..12 {
+        // Steps in which some agent stayed, and in which an agent reached or left its goal
+        // (small maps make the latter common): both must be met for the test to mean much.
+        let (mut stays, mut goal_changes) = (0, 0);
+        for case in 0..24 {
             let fov = [5, 9, 11][case % 3];
             let n = 1 + case % 5;
-            let instance = random_instance(&mut rng, 24, 20, 0.2, n);
+            let (w, h) = if case % 2 == 0 { (24, 20) } else { (4, 3) };
+            let instance = random_instance(&mut rng, w, h, 0.2, n);
             let task = [Task::PathFinding, Task::Formation, Task::Meta][case % 3];
             let config = EnvConfig { fov, task, step_limit: Some(40), ..EnvConfig::default() };
             let mut env = Env::new(config).unwrap();
@@ -1246,7 +1343,10 @@ mod tests {
             while !env.is_done() {
                 let actions: Vec<Action> =
                     (0..n).map(|_| Action::ALL[rng.random_range(0..5)]).collect();
+                let (before, on_goal) = (env.positions().to_vec(), env.on_goal().to_vec());
                 env.step(&actions);
+                stays += usize::from(before.iter().zip(env.positions()).any(|(a, b)| a == b));
+                goal_changes += usize::from(on_goal != env.on_goal());
                 for (agent, kept) in kept.iter_mut().enumerate() {
                     env.write_grid_changing(agent, kept);
                     let mut whole = vec![f32::NAN; len];
@@ -1256,6 +1356,7 @@ mod tests {
                 }
             }
         }
+        assert!(stays > 100 && goal_changes > 10, "stays {stays}, goal changes {goal_changes}");
     }
 
     #[test]

@@ -20,7 +20,9 @@
 //! the observations are always those to act on.
 
 use std::path::PathBuf;
-use std::sync::{Mutex, PoisonError};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 use numpy::{
     PyArray1, PyArray2, PyArray3, PyArray5, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -36,6 +38,13 @@ use crate::{bad, error};
 
 /// Environments below which a parallel step runs on the calling thread.
 const SERIAL_BELOW: usize = 2;
+
+/// How long a helper stays awake after a call, waiting for the next one, and how long the
+/// calling thread waits awake for the helpers' last blocks before it sleeps. Waking a
+/// sleeping thread costs tens of microseconds on a virtual machine, as much as stepping
+/// a few environments, and a Python loop calls again within that time; a thread that waits
+/// longer sleeps, so an idle vector costs nothing.
+const STAY_AWAKE: Duration = Duration::from_micros(300);
 
 /// One environment of the vector: the simulator, its running episode and its seeds.
 struct Slot {
@@ -483,11 +492,15 @@ enum Threads {
     /// The calling thread only (`num_threads=1`): no hand-over to another thread per call.
     Caller,
     /// The calling thread and `num_threads - 1` helpers of a pool of this vector's own.
-    Pool(rayon::ThreadPool, usize),
+    Pool(rayon::ThreadPool, usize, Calls),
     /// The calling thread and helpers of rayon's global pool, as many threads in all as the
     /// global pool has.
-    Global,
+    Global(Calls),
 }
+
+/// The parallel calls made so far: a helper that stays awake after a call
+/// ([`STAY_AWAKE`]) stops waiting as soon as the next one begins.
+type Calls = Arc<AtomicU64>;
 
 impl Threads {
     /// `num_threads` threads in all (`None`: as many as rayon's global pool has).
@@ -498,9 +511,9 @@ impl Threads {
             Some(threads) => rayon::ThreadPoolBuilder::new()
                 .num_threads(threads - 1)
                 .build()
-                .map(|pool| Threads::Pool(pool, threads))
+                .map(|pool| Threads::Pool(pool, threads, Calls::default()))
                 .map_err(|err| bad(format!("num_threads {threads}: {err}"))),
-            None => Ok(Threads::Global),
+            None => Ok(Threads::Global(Calls::default())),
         }
     }
 
@@ -508,8 +521,8 @@ impl Threads {
     fn count(&self) -> usize {
         match self {
             Threads::Caller => 1,
-            Threads::Pool(_, threads) => *threads,
-            Threads::Global => rayon::current_num_threads(),
+            Threads::Pool(_, threads, _) => *threads,
+            Threads::Global(_) => rayon::current_num_threads(),
         }
     }
 }
@@ -573,12 +586,13 @@ fn for_each_env<R: Rows>(
     // call after call (their maps stay in its core's cache) while a thread that the machine
     // holds back leaves its share to the others.
     let untaken = Mutex::new(0..blocks.len());
+    let finished = AtomicUsize::new(0);
     let drain = |from_back: bool| {
         loop {
             let k = {
                 let mut untaken = untaken.lock().unwrap_or_else(PoisonError::into_inner);
                 let k = if from_back { untaken.next_back() } else { untaken.next() };
-                let Some(k) = k else { return };
+                let Some(k) = k else { break };
                 k
             };
             let mut block = blocks[k].lock().unwrap_or_else(PoisonError::into_inner);
@@ -586,14 +600,31 @@ fn for_each_env<R: Rows>(
             {
                 *block = Block::Done(work(slots, rows, first));
             }
+            drop(block);
+            finished.fetch_add(1, Ordering::Release);
+        }
+        if !from_back {
+            // The helpers' last blocks: waited for awake a while, then asleep in the scope.
+            awake_until(|| finished.load(Ordering::Acquire) == blocks.len());
         }
     };
     let helpers = (count - 1).min(blocks.len() - 1);
     match threads {
-        Threads::Pool(pool, _) => pool.in_place_scope(|scope| spread(scope, helpers, &drain)),
-        Threads::Global | Threads::Caller => {
-            rayon::in_place_scope(|scope| spread(scope, helpers, &drain));
+        Threads::Pool(pool, _, calls) => {
+            calls.fetch_add(1, Ordering::AcqRel);
+            pool.in_place_scope(|scope| spread(scope, helpers, &drain));
+            for _ in 0..helpers {
+                pool.spawn(stay_awake(calls));
+            }
         }
+        Threads::Global(calls) => {
+            calls.fetch_add(1, Ordering::AcqRel);
+            rayon::in_place_scope(|scope| spread(scope, helpers, &drain));
+            for _ in 0..helpers {
+                rayon::spawn(stay_awake(calls));
+            }
+        }
+        Threads::Caller => unreachable!("one thread steps on the caller alone"),
     }
     for block in blocks {
         match block.into_inner().unwrap_or_else(PoisonError::into_inner) {
@@ -603,6 +634,27 @@ fn for_each_env<R: Rows>(
         }
     }
     Ok(())
+}
+
+/// Waits, awake, until `done` holds or [`STAY_AWAKE`] has passed.
+fn awake_until(done: impl Fn() -> bool) {
+    let start = Instant::now();
+    let mut spins = 0_u32;
+    while !done() {
+        std::hint::spin_loop();
+        spins = spins.wrapping_add(1);
+        if spins.is_multiple_of(64) && start.elapsed() >= STAY_AWAKE {
+            return;
+        }
+    }
+}
+
+/// A job that keeps a helper awake until the next call begins or [`STAY_AWAKE`] has passed
+/// (a rayon worker that finds no work goes to sleep, and the next call would wake it).
+fn stay_awake(calls: &Calls) -> impl FnOnce() + Send + 'static {
+    let calls = Arc::clone(calls);
+    let call = calls.load(Ordering::Acquire);
+    move || awake_until(|| calls.load(Ordering::Acquire) != call)
 }
 
 /// Runs `drain(true)` (from the back) on `helpers` threads of `scope`'s pool and
