@@ -114,6 +114,21 @@ fn is_zero(x: &f64) -> bool {
 }
 
 impl EnvConfig {
+    /// Refuses settings no environment can follow: an even field of view or one below 3, the
+    /// team vector without the place vector it follows ([`crate::Env::new`] checks them).
+    ///
+    /// # Errors
+    /// [`EnvError::Fov`] or [`EnvError::TeamVector`].
+    pub fn check(&self) -> Result<(), EnvError> {
+        if self.fov < 3 || self.fov.is_multiple_of(2) {
+            return Err(EnvError::Fov(self.fov));
+        }
+        if self.team_vector && !self.place_vector {
+            return Err(EnvError::TeamVector);
+        }
+        Ok(())
+    }
+
     /// The length of each agent's vector: the goal vector, then the place and team vectors
     /// when on ([`crate::obs::VECTOR_LEN`] values each).
     pub fn vector_len(&self) -> usize {

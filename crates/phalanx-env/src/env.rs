@@ -276,12 +276,7 @@ impl Env {
 
     /// An environment with no episode yet; call [`Env::reset`].
     pub fn new(config: EnvConfig) -> Result<Env, EnvError> {
-        if config.fov < 3 || config.fov.is_multiple_of(2) {
-            return Err(EnvError::Fov(config.fov));
-        }
-        if config.team_vector && !config.place_vector {
-            return Err(EnvError::TeamVector);
-        }
+        config.check()?;
         let fov = config.fov as usize;
         Ok(Env {
             config,

@@ -148,9 +148,7 @@ impl ImitationConfig {
         self.net.check().map_err(|err| format!("net: {err}"))?;
         let net = &self.net;
         let env = &self.data.env;
-        if env.team_vector && !env.place_vector {
-            return Err("data.env.team_vector: the team vector needs data.env.place_vector".into());
-        }
+        env.check().map_err(|err| format!("data.env: {err}"))?;
         let vector = env.vector_len();
         if net.n_actions != phalanx_core::Action::COUNT || net.env_vec != vector || net.centralised
         {
@@ -451,6 +449,9 @@ mod tests {
         assert!(bad(r#"{"round_epsilon": 2}"#).contains("round_epsilon"));
         assert!(bad(r#"{"net": {"n_actions": 2}}"#).contains("5 actions"));
         assert!(bad(r#"{"data": {"agents": [9]}}"#).contains("data.agents"));
+        let team_alone = bad(r#"{"data": {"env": {"place_vector": false, "team_vector": true}}}"#);
+        assert!(team_alone.starts_with("data.env: the team vector needs"), "{team_alone}");
+        assert!(bad(r#"{"data": {"env": {"fov": 8}}}"#).contains("data.env: field of view 8"));
         assert!(bad("{\n \"rounds\": \"x\"}").contains("line 2"));
         assert!(bad(r#"{"updates": 18446744073709551615, "rounds": 1}"#).contains("overflow"));
     }
