@@ -110,7 +110,7 @@ pub(crate) struct EvalCmd {
     #[arg(long, value_enum, default_value_t = meta::KeepArg::Fastest)]
     keep: meta::KeepArg,
     #[command(flatten)]
-    escape: meta::EscapeArgs,
+    acting: meta::ActingArgs,
     #[command(flatten)]
     leader: meta::LeaderArgs,
     /// hrl, leader: the path-finding policy's directory or file (default: the one the meta
@@ -176,7 +176,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     };
     let (mut policy, header, _) =
         models::load_with_header(Some(&file), if scripted { "pathfinding" } else { name })?;
-    cmd.escape.apply(&mut policy);
+    cmd.acting.apply(&mut policy);
     let fov = header.net_config.fov as u32;
     anyhow::ensure!(
         cmd.map.fov == fov,

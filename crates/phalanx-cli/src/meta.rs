@@ -107,15 +107,20 @@ pub(crate) struct RolloutArgs {
     keep: KeepArg,
 }
 
-/// `--escape`, the stall escape a learned policy acts with (`solve`, `eval`;
-/// [`phalanx_rl::escape`]).
+/// How a learned policy acts at test time (`solve`, `eval`): `--escape`, the stall escape
+/// ([`phalanx_rl::escape`]), and `--team-deadband`, the team vector's dead band.
 #[derive(Debug, Clone, clap::Args)]
-pub(crate) struct EscapeArgs {
+pub(crate) struct ActingArgs {
     /// Learned policies: the stall escape, `VISITS:PROB` (from the VISITS-th step on one cell
     /// off the goal, a random allowed action with probability PROB) or `off` (default: the
     /// policy's own: the imitation student's 4:0.5, none for the others; docs/imitation.md).
     #[arg(long, value_name = "VISITS:PROB|off", value_parser = escape)]
     escape: Option<EscapeArg>,
+    /// The imitation student: the team vector's dead band in cells, 0 or more (default 1.5,
+    /// as trained): narrower, the agent in front waits for smaller lags, and the team keeps
+    /// its shape better and takes longer (docs/imitation.md). No effect on the other policies.
+    #[arg(long, value_name = "CELLS", value_parser = crate::util::team_deadband)]
+    team_deadband: Option<f64>,
 }
 
 /// A parsed `--escape`: `None` for `off`.
@@ -127,11 +132,14 @@ fn escape(text: &str) -> Result<EscapeArg, String> {
     phalanx_rl::escape::parse_escape(text).map(EscapeArg)
 }
 
-impl EscapeArgs {
-    /// `policy` acting with the escape given, or with its own when none was.
+impl ActingArgs {
+    /// `policy` acting with the escape and dead band given, or with its own when none was.
     pub(crate) fn apply(&self, policy: &mut Policy) {
         if let Some(EscapeArg(escape)) = self.escape {
             policy.set_escape(escape);
+        }
+        if let Some(cells) = self.team_deadband {
+            policy.set_team_deadband(cells).expect("checked by the flag's parser");
         }
     }
 }

@@ -75,7 +75,7 @@ pub(crate) struct SolveCmd {
     #[command(flatten)]
     rollouts: meta::RolloutArgs,
     #[command(flatten)]
-    escape: meta::EscapeArgs,
+    acting: meta::ActingArgs,
     /// Learned policies: the weights directory (hrl: the meta policy's; default: the
     /// shipped models/meta or models/pathfinding).
     #[arg(long, value_name = "DIR")]
@@ -189,7 +189,7 @@ fn learned(cmd: &SolveCmd, named: &phalanx_io::NamedInstance) -> anyhow::Result<
         _ => "pathfinding",
     };
     let (mut policy, header, file) = models::load_with_header(cmd.weights.as_deref(), name)?;
-    cmd.escape.apply(&mut policy);
+    cmd.acting.apply(&mut policy);
     let solver = if hrl {
         let hierarchy = models::hierarchy(policy, &header, &file, None, None)?;
         Solver::Hierarchy(Box::new(hierarchy))

@@ -112,6 +112,12 @@ pub(crate) fn fraction(text: &str) -> Result<f64, String> {
     })
 }
 
+/// `--team-deadband`: a finite number of cells, 0 or more (the environment's own check).
+pub(crate) fn team_deadband(text: &str) -> Result<f64, String> {
+    let cells = number(text)?;
+    phalanx_env::check_team_deadband(cells).map(|()| cells).map_err(|err| err.to_string())
+}
+
 /// The longest duration a flag in seconds accepts (`--time-limit`, `--join-timeout`,
 /// `--silence`): about eleven days.
 pub(crate) const MAX_SECONDS: f64 = 1e6;

@@ -95,7 +95,7 @@ pub struct EnvConfig {
     /// Whether an agent's vector ends with the *team vector*: for the agent in front (the
     /// path-finding leader), the vector towards its place in the goal layout placed on the
     /// team's centre (the mean of the agents' cells), zeros within
-    /// [`crate::obs::TEAM_DEADBAND`] of it; zeros for the other agents
+    /// [`EnvConfig::team_deadband`] of it; zeros for the other agents
     /// ([`crate::Env::write_team_vector`]). It tells the agent in front, whose place vector is
     /// zeros, how far the others lag behind; it can compute it from the others' broadcast
     /// place vectors (`docs/observation.md`). Needs [`EnvConfig::place_vector`]; the vector is
@@ -103,6 +103,18 @@ pub struct EnvConfig {
     /// written when false.
     #[serde(skip_serializing_if = "is_false")]
     pub team_vector: bool,
+    /// The team vector's dead band in cells: the team vector is zeros while it is shorter
+    /// (a team that lags less is left to the followers' place vectors, and the agent in
+    /// front does not wait for it). Default [`crate::obs::TEAM_DEADBAND`], 1.5, what the
+    /// shipped student was trained with; narrower at test time, the team keeps its shape
+    /// better and takes longer (`docs/imitation.md`, *The dead band at test time*). Not
+    /// written when the default.
+    #[serde(skip_serializing_if = "is_default_deadband")]
+    pub team_deadband: f64,
+}
+
+fn is_default_deadband(x: &f64) -> bool {
+    *x == crate::obs::TEAM_DEADBAND
 }
 
 fn is_false(x: &bool) -> bool {
@@ -115,10 +127,11 @@ fn is_zero(x: &f64) -> bool {
 
 impl EnvConfig {
     /// Refuses settings no environment can follow: an even field of view or one below 3, the
-    /// team vector without the place vector it follows ([`crate::Env::new`] checks them).
+    /// team vector without the place vector it follows, a dead band that is not a number
+    /// of cells at or above 0 ([`crate::Env::new`] checks them).
     ///
     /// # Errors
-    /// [`EnvError::Fov`] or [`EnvError::TeamVector`].
+    /// [`EnvError::Fov`], [`EnvError::TeamVector`] or [`EnvError::TeamDeadband`].
     pub fn check(&self) -> Result<(), EnvError> {
         if self.fov < 3 || self.fov.is_multiple_of(2) {
             return Err(EnvError::Fov(self.fov));
@@ -126,7 +139,7 @@ impl EnvConfig {
         if self.team_vector && !self.place_vector {
             return Err(EnvError::TeamVector);
         }
-        Ok(())
+        check_team_deadband(self.team_deadband)
     }
 
     /// The length of each agent's vector: the goal vector, then the place and team vectors
@@ -147,8 +160,17 @@ impl Default for EnvConfig {
             idle_cost: 0.0,
             place_vector: false,
             team_vector: false,
+            team_deadband: crate::obs::TEAM_DEADBAND,
         }
     }
+}
+
+/// Refuses a team-vector dead band that is not a finite number of cells at or above 0.
+///
+/// # Errors
+/// [`EnvError::TeamDeadband`].
+pub fn check_team_deadband(cells: f64) -> Result<(), EnvError> {
+    if cells.is_finite() && cells >= 0.0 { Ok(()) } else { Err(EnvError::TeamDeadband(cells)) }
 }
 
 /// Why the environment cannot be built or reset.
@@ -160,6 +182,9 @@ pub enum EnvError {
     /// The team vector without the place vector it follows.
     #[error("the team vector needs the place vector (team_vector without place_vector)")]
     TeamVector,
+    /// The team vector's dead band is negative or not a number.
+    #[error("team vector dead band {0}: a number of cells, 0 or more")]
+    TeamDeadband(f64),
     /// A training map cannot be read or holds no formation (the reader's message names the
     /// file, and the line where one is at fault).
     #[error("training map: {0}")]

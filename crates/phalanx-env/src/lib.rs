@@ -40,7 +40,7 @@ mod pool;
 pub mod sim;
 mod task;
 
-pub use config::{Clip, EnvConfig, EnvError, LeaderRule, MAX_AGENTS, Task};
+pub use config::{Clip, EnvConfig, EnvError, LeaderRule, MAX_AGENTS, Task, check_team_deadband};
 pub use env::{Env, Step, StepInfo};
 pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use hier::{Choice, HierEnv, MetaInputs, clip_claimed};

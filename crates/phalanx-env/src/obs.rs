@@ -27,9 +27,10 @@ pub const CHANNELS: usize = 4;
 /// Length of the goal vector.
 pub const VECTOR_LEN: usize = 3;
 
-/// The team vector is zeros while the agent in front is closer than this many cells to its
-/// place on the team ([`crate::Env::write_team_vector`]): a team one cell out of shape is
-/// left to the followers' place vectors, and the agent in front does not wait for it.
+/// The default dead band of the team vector ([`crate::EnvConfig::team_deadband`]): it is
+/// zeros while the agent in front is closer than this many cells to its place on the team
+/// ([`crate::Env::write_team_vector`]), so a team one cell out of shape is left to the
+/// followers' place vectors and the agent in front does not wait for it.
 pub const TEAM_DEADBAND: f64 = 1.5;
 
 /// Number of actions, the width of a message row and of a mask.

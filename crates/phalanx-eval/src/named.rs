@@ -5,8 +5,9 @@
 //! makespan) or `jsa:W` (minimises `makespan + W · Σ L_f`), `pathfinding`, `leader[:L]` (the
 //! scripted rule, closing up above `L_f = L`), `hrl[:M]` (the meta policy at `M × w_f`,
 //! default 1; with a front of meta policies, the one trained at `M`), `e2e` (the end-to-end
-//! VDN baseline), `ctce` (the centralised baseline) and `imitation` (the student that learned
-//! from the centralised expert, docs/imitation.md).
+//! VDN baseline), `ctce` (the centralised baseline) and `imitation[:PARAMS]` (the student
+//! that learned from the centralised expert, docs/imitation.md; `off` or `VISITS:PROB`, its
+//! stall escape, and `band=CELLS`, its team vector's dead band, joined by `+`).
 //!
 //! The learned ones are loaded by `phalanx_rl::models` (given files or the shipped models).
 
@@ -207,12 +208,19 @@ impl Method {
             }
             "imitation" => {
                 // `imitation:off`, `imitation:VISITS:PROB`: another stall escape than the
-                // student's own.
+                // student's own; `imitation:band=CELLS`: another dead band of the team
+                // vector; both joined by `+` (`imitation:off+band=0.75`).
                 let (mut policy, _) = models::load(sources.imitation, name).map_err(model)?;
-                if let Some(param) = param {
-                    let escape = parse_escape(param)
-                        .map_err(|message| MethodError::Bound { spec: spec.to_owned(), message })?;
-                    policy.set_escape(escape);
+                let bound = |message| MethodError::Bound { spec: spec.to_owned(), message };
+                for part in param.into_iter().flat_map(|param| param.split('+')) {
+                    if let Some(cells) = part.strip_prefix("band=") {
+                        let cells = cells
+                            .parse()
+                            .map_err(|_| bound(format!("band {cells:?} is not a number")))?;
+                        policy.set_team_deadband(cells).map_err(|err| bound(err.to_string()))?;
+                    } else {
+                        policy.set_escape(parse_escape(part).map_err(bound)?);
+                    }
                 }
                 Ok(Method::new(spec, Solver::EndToEnd(Box::new(policy))))
             }
@@ -311,6 +319,10 @@ mod tests {
             message.starts_with("method imitation:on: escape \"on\": VISITS:PROB"),
             "{message}"
         );
+        let message = err("imitation:band=-1");
+        assert!(message.contains("dead band -1: a number of cells, 0 or more"), "{message}");
+        let message = err("imitation:off+band=x");
+        assert_eq!(message, "method imitation:off+band=x: band \"x\" is not a number");
         let jsa =
             Method::named("jsa:0.5", &Sources { jsa_max_side: Some(32), ..Sources::default() });
         assert_eq!(jsa.unwrap().max_side, Some(32));
@@ -330,5 +342,22 @@ mod tests {
             Some(phalanx_rl::Escape { visits: 2, prob: 0.25 })
         );
         assert_eq!(escape_of("e2e"), None);
+    }
+
+    #[test]
+    fn the_students_dead_band_is_its_training_one_unless_its_name_says_otherwise() {
+        let acting = |spec: &str| match Method::named(spec, &Sources::default()).unwrap().solver {
+            Solver::EndToEnd(policy) => {
+                let env = policy.env_config(phalanx_env::Task::Meta);
+                (policy.escape(), env.team_deadband)
+            }
+            _ => panic!("{spec}: a learned policy"),
+        };
+        let student = Some(phalanx_rl::Escape::STUDENT);
+        assert_eq!(acting("imitation"), (student, phalanx_env::obs::TEAM_DEADBAND));
+        assert_eq!(acting("imitation:band=0.75"), (student, 0.75));
+        assert_eq!(acting("imitation:off+band=0"), (None, 0.0));
+        let escape = Some(phalanx_rl::Escape { visits: 3, prob: 0.5 });
+        assert_eq!(acting("imitation:band=1+3:0.5"), (escape, 1.0));
     }
 }

@@ -51,6 +51,7 @@ fn _phalanx(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_DENSITY", phalanx_gen::DEFAULT_DENSITY)?;
     m.add("DEFAULT_AGENTS", phalanx_gen::DEFAULT_AGENTS)?;
     m.add("DEFAULT_FOV", phalanx_gen::DEFAULT_FOV)?;
+    m.add("TEAM_DEADBAND", phalanx_env::obs::TEAM_DEADBAND)?;
     m.add_class::<world::World>()?;
     m.add_class::<vector::VecWorld>()?;
     m.add_class::<toolkit::PyInstance>()?;

@@ -263,10 +263,11 @@ impl World {
     /// `agents`) or on the instance file `instance`, with a `fov × fov` view; the meta task
     /// weighs `L_f` by `formation_weight` and, with `place_vector`, ends each agent's vector
     /// with the vector towards its place, then with `team_vector` the team vector (what the
-    /// planners' student reads; the team vector needs the place vector).
+    /// planners' student reads; the team vector needs the place vector), zeros within
+    /// `team_deadband` cells.
     #[new]
     #[allow(clippy::too_many_arguments, reason = "Python's keyword arguments")]
-    #[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None, place_vector = false, team_vector = false))]
+    #[pyo3(signature = (size = phalanx_gen::DEFAULT_SIZE, density = phalanx_gen::DEFAULT_DENSITY, agents = phalanx_gen::DEFAULT_AGENTS, task = "pathfinding", fov = phalanx_gen::DEFAULT_FOV, formation_weight = 1.0, instance = None, place_vector = false, team_vector = false, team_deadband = phalanx_env::obs::TEAM_DEADBAND))]
     fn new(
         py: Python<'_>,
         size: u32,
@@ -278,6 +279,7 @@ impl World {
         instance: Option<PathBuf>,
         place_vector: bool,
         team_vector: bool,
+        team_deadband: f64,
     ) -> PyResult<World> {
         let mut spec = Spec::new(size, density, agents, task, fov, formation_weight, instance)?;
         if place_vector && spec.task != Task::Meta {
@@ -287,6 +289,7 @@ impl World {
         }
         spec.env_config.place_vector = place_vector;
         spec.env_config.team_vector = team_vector;
+        spec.env_config.team_deadband = team_deadband;
         let env = Env::new(spec.env_config.clone()).map_err(|err| error(&err))?;
         let n = spec.n_agents;
         let f = fov as usize;

@@ -470,6 +470,30 @@ def test_a_trained_imitation_student_plays_in_python_as_phalanx_solve(instance_f
     assert pad(played) == pad(paths)
 
 
+def test_the_team_vectors_dead_band_is_an_environment_setting():
+    settings = dict(size=16, agents=3, task="meta", place_vector=True, team_vector=True)
+    assert phalanx.TEAM_DEADBAND == 1.5
+    with pytest.raises(phalanx.PhalanxError, match="dead band -1"):
+        phalanx.parallel_env(team_deadband=-1, **settings)
+    # The same random walk seen with no band and with a band no lag reaches: the second
+    # shows the agent in front only zeros, the first does not once the team is out of shape.
+    seen = {}
+    for band in (0.0, 1e9):
+        env = phalanx.parallel_env(team_deadband=band, seed=3, **settings)
+        observations, _ = env.reset(seed=3)
+        rng = np.random.default_rng(0)
+        teams = []
+        for _ in range(20):
+            teams += [obs["team"].copy() for obs in observations.values()]
+            actions = {a: int(rng.integers(0, 5)) for a in env.agents}
+            observations, *_ = env.step(actions)
+            if not env.agents:
+                break
+        seen[band] = np.array(teams)
+    assert seen[1e9].shape == seen[0.0].shape
+    assert not seen[1e9].any() and seen[0.0].any()
+
+
 def test_vector_env_is_the_same_on_any_thread_count_with_uneven_blocks():
     # 13 environments cut into blocks of two and one (three threads: the caller from the
     # front, two helpers from the back), the global pool's count, and one thread: the same

@@ -156,13 +156,19 @@ impl Default for DataConfig {
 
 impl DataConfig {
     /// Whether data made with `self` holds the episodes data made with `other` holds: the
-    /// same settings but for what only the observations read (the place and team vectors),
-    /// which the replay computes ([`for_each_sample`]) and no expert episode depends on. A
+    /// same settings but for what only the observations read (the place and team vectors
+    /// and the team vector's dead band), which the replay computes ([`for_each_sample`]) and
+    /// no expert episode depends on. A
     /// student's rollouts depend on what the student reads, so a round's data (with
     /// `student`) must match exactly.
     pub fn same_episodes(&self, other: &DataConfig) -> bool {
         let bare = |config: &DataConfig| {
-            let env = EnvConfig { place_vector: false, team_vector: false, ..config.env.clone() };
+            let env = EnvConfig {
+                place_vector: false,
+                team_vector: false,
+                team_deadband: phalanx_env::obs::TEAM_DEADBAND,
+                ..config.env.clone()
+            };
             DataConfig { env, ..config.clone() }
         };
         if self.student.is_some() || other.student.is_some() {

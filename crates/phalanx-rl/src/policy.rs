@@ -35,6 +35,8 @@ pub struct Policy {
     escape: Option<Escape>,
     /// Each row's side of the escape (rows as in the last [`Policy::act_batch`]).
     stuck: Vec<Stuck>,
+    /// The team vector's dead band of the environments it acts in ([`Policy::env_config`]).
+    team_deadband: f64,
 }
 
 /// Why a saved recurrent state does not fit a policy's network.
@@ -68,6 +70,7 @@ impl Policy {
             config,
             state: None,
             escape: None,
+            team_deadband: phalanx_env::obs::TEAM_DEADBAND,
             stuck: vec![],
         }
     }
@@ -84,6 +87,24 @@ impl Policy {
         self.escape
     }
 
+    /// Acts in environments whose team vector has the dead band `cells` (its
+    /// [`Policy::env_config`]; default [`phalanx_env::obs::TEAM_DEADBAND`], what the
+    /// planners' student was trained with): a test-time knob between formation and speed
+    /// for a network that reads the team vector (`docs/imitation.md`).
+    ///
+    /// # Errors
+    /// A band that is negative or not a number.
+    pub fn set_team_deadband(&mut self, cells: f64) -> Result<(), phalanx_env::EnvError> {
+        phalanx_env::check_team_deadband(cells)?;
+        self.team_deadband = cells;
+        Ok(())
+    }
+
+    /// The team vector's dead band of the environments it acts in.
+    pub fn team_deadband(&self) -> f64 {
+        self.team_deadband
+    }
+
     /// The network sizes.
     pub fn config(&self) -> &QNetConfig {
         &self.config
@@ -91,8 +112,8 @@ impl Policy {
 
     /// The settings of an environment of `task` this policy acts in: its network's field of
     /// view, the place vector on the meta task when the network reads a vector of 6 (the
-    /// planners' student, `docs/imitation.md`), the place and team vectors when it reads 9,
-    /// the rest the defaults (the step limit
+    /// planners' student, `docs/imitation.md`), the place and team vectors when it reads 9
+    /// (with its [`Policy::team_deadband`]), the rest the defaults (the step limit
     /// `3 × side`). Every command, the benchmark and the Python package derive a policy's
     /// environment here (a hierarchy's: `Hierarchy::env_config`).
     pub fn env_config(&self, task: Task) -> EnvConfig {
@@ -100,7 +121,8 @@ impl Policy {
         let place_vector = meta && self.config.env_vec >= 2 * VECTOR_LEN;
         let team_vector = meta && self.config.env_vec == 3 * VECTOR_LEN;
         let fov = self.config.fov as u32;
-        EnvConfig { fov, task, place_vector, team_vector, ..EnvConfig::default() }
+        let team_deadband = self.team_deadband;
+        EnvConfig { fov, task, place_vector, team_vector, team_deadband, ..EnvConfig::default() }
     }
 
     /// Replace the weights, keeping the recurrent state (a learner's policy after an update).

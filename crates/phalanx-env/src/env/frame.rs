@@ -24,7 +24,7 @@
 use phalanx_core::Cell;
 
 use super::{BLOCKED, Env, UNREACHABLE};
-use crate::obs::{CHANNELS, COST_SENTINEL, TEAM_DEADBAND};
+use crate::obs::{CHANNELS, COST_SENTINEL};
 
 /// Radius of the window of each frame goal's distances (a window of `2R + 1` cells a side).
 pub(crate) const RADIUS: i32 = 16;
@@ -193,7 +193,8 @@ impl Env {
 
     /// Agent `agent`'s vector towards its place in the goal layout translated by `shift`
     /// ([`Env::team_shift`]: the layout placed on the team's centre), scaled as
-    /// [`Env::write_vector`]; zeros when it is shorter than [`TEAM_DEADBAND`]. For the agent
+    /// [`Env::write_vector`]; zeros when it is shorter than the dead band
+    /// ([`crate::EnvConfig::team_deadband`]). For the agent
     /// in front of a team that fell behind, it points back by the others' mean lag: what
     /// it needs to know to wait for them ([`Env::write_vectors`] writes it for that agent
     /// only).
@@ -204,7 +205,8 @@ impl Env {
         let (p, g) = (self.pos[agent], self.goals[agent]);
         let dx = f64::from(g.x - p.x) + shift.0;
         let dy = f64::from(g.y - p.y) + shift.1;
-        if dx * dx + dy * dy < TEAM_DEADBAND * TEAM_DEADBAND {
+        let band = self.config.team_deadband;
+        if dx * dx + dy * dy < band * band {
             out[..3].fill(0.0);
         } else {
             write_scaled(dx, dy, self.fov, out);

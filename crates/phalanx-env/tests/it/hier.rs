@@ -207,3 +207,38 @@ fn the_team_vector_points_the_agent_in_front_back_to_a_team_behind_it() {
     let lone = EnvConfig { task: Task::Meta, team_vector: true, ..EnvConfig::default() };
     assert!(Env::new(lone).is_err());
 }
+
+#[test]
+fn a_narrower_dead_band_shows_the_agent_in_front_a_smaller_lag() {
+    // Agent 2 two thirds of a cell ahead of its place on the team: within the default band
+    // of 1.5 cells, outside one of 0.5.
+    let near = instance(16, 4, &[], &[c(4, 1), c(5, 1), c(7, 1)], &[c(8, 1), c(9, 1), c(10, 1)]);
+    let base = EnvConfig {
+        task: Task::Meta,
+        place_vector: true,
+        team_vector: true,
+        ..EnvConfig::default()
+    };
+    assert_eq!(base.team_deadband, phalanx_env::obs::TEAM_DEADBAND);
+    let team_vector = |band: f64| {
+        let mut env = Env::new(EnvConfig { team_deadband: band, ..base.clone() }).unwrap();
+        env.reset(&near).unwrap();
+        let mut obs = ObsBuffers::new(3, env.obs_shape());
+        env.observe(&mut obs);
+        obs.vec_of(2)[6..].to_vec()
+    };
+    assert_eq!(team_vector(1.5), [0.0; 3]);
+    let shown = team_vector(0.5);
+    assert!(shown[0] < 0.0 && shown[1] == 0.0 && shown[2] > 0.0, "{shown:?}");
+    assert_eq!(team_vector(0.0), shown);
+    // The band is a number of cells, 0 or more; the default is not written.
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let err = Env::new(EnvConfig { team_deadband: bad, ..base.clone() }).err().unwrap();
+        assert!(err.to_string().contains("dead band"), "{err}");
+    }
+    assert!(!serde_json::to_string(&base).unwrap().contains("team_deadband"));
+    let narrow = EnvConfig { team_deadband: 0.75, ..base.clone() };
+    let text = serde_json::to_string(&narrow).unwrap();
+    assert!(text.contains("\"team_deadband\":0.75"), "{text}");
+    assert_eq!(serde_json::from_str::<EnvConfig>(&text).unwrap(), narrow);
+}

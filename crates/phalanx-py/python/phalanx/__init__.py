@@ -16,7 +16,7 @@ Bad input raises ``PhalanxError`` (a ``ValueError``) with the Rust message.
 
 from __future__ import annotations
 
-from phalanx._phalanx import PhalanxError, default_formation_weight
+from phalanx._phalanx import TEAM_DEADBAND, PhalanxError, default_formation_weight
 from phalanx.envs import AECEnv, ParallelEnv, env, parallel_env
 from phalanx.policies import load_policy
 from phalanx.toolkit import Instance, Solution, generate, read_instance, solve, validate
@@ -28,6 +28,7 @@ __all__ = [
     "ParallelEnv",
     "PhalanxError",
     "Solution",
+    "TEAM_DEADBAND",
     "VectorEnv",
     "default_formation_weight",
     "env",

@@ -73,6 +73,7 @@ class _Core:
         render_mode: str | None,
         place_vector: bool,
         team_vector: bool,
+        team_deadband: float,
     ) -> None:
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise _phalanx.PhalanxError(
@@ -81,7 +82,9 @@ class _Core:
         path = None if instance is None else os.fspath(instance)
         weight = 1.0 if formation_weight is None else float(formation_weight)
         vectors = (bool(place_vector), bool(team_vector))
-        self.world = _phalanx.World(size, density, agents, task, fov, weight, path, *vectors)
+        self.world = _phalanx.World(
+            size, density, agents, task, fov, weight, path, *vectors, float(team_deadband)
+        )
         if task == "meta" and formation_weight is None:
             n = self.world.n_agents
             self.world.set_formation_weight(_phalanx.default_formation_weight(n))
@@ -177,6 +180,7 @@ class _Shared:
         render_mode: str | None = None,
         place_vector: bool = False,
         team_vector: bool = False,
+        team_deadband: float = _phalanx.TEAM_DEADBAND,
     ) -> None:
         self._core = _Core(
             size,
@@ -190,6 +194,7 @@ class _Shared:
             render_mode,
             place_vector,
             team_vector,
+            team_deadband,
         )
         self.render_mode = render_mode
         self.possible_agents = list(self._core.names)
@@ -318,8 +323,11 @@ def parallel_env(**kwargs: Any) -> ParallelEnv:
     (meta task only: each observation gains ``"place"``, the vector towards the agent's
     place in the goal layout placed on the agent in front), ``team_vector=False`` (with
     ``place_vector``: each observation gains ``"team"``, for the agent in front the vector
-    towards its place in the goal layout placed on the team, zeros for the others); the
-    planners' student ``load_policy("imitation")`` reads both."""
+    towards its place in the goal layout placed on the team, zeros for the others),
+    ``team_deadband=1.5`` (the team vector is zeros while shorter than this many cells: the
+    band the student was trained with; narrower, its teams keep their shape better and take
+    longer, docs/imitation.md); the planners' student ``load_policy("imitation")`` reads
+    both vectors."""
     return ParallelEnv(**kwargs)
 
 

@@ -216,6 +216,9 @@ fn data_of_other_observations_holds_the_same_expert_episodes() {
     let env = EnvConfig { place_vector: false, team_vector: false, ..team.env.clone() };
     let bare = DataConfig { env, ..team.clone() };
     assert!(bare.same_episodes(&team) && team.same_episodes(&bare));
+    let narrow =
+        DataConfig { env: EnvConfig { team_deadband: 0.5, ..team.env.clone() }, ..team.clone() };
+    assert!(narrow.same_episodes(&team), "the dead band is read on replay");
     let a = generate(&bare, &|_| {}).unwrap().0;
     let b = generate(&team, &|_| {}).unwrap().0;
     assert_eq!(a.episodes, b.episodes);
