@@ -2,6 +2,9 @@
 //! and resumed, ends with exactly the data, metrics and policy of a run never stopped; its
 //! policy runs as the `imitation` method.
 
+use std::path::Path;
+use std::process::Output;
+
 use super::{check, learning, phalanx};
 
 /// A tiny run: a few 16² pool maps, teams of 3, the fast expert, two DAgger rounds,
@@ -13,21 +16,23 @@ pub(crate) const CONFIG: &str = r#"{
     "checkpoint_every": 3, "validation_maps": 1, "validation_max_side": 20
 }"#;
 
+/// `phalanx train imitation --config cfg.json --out OUT EXTRA…` in `dir`.
+fn train(dir: &Path, out: &str, extra: &[&str]) -> Output {
+    let args = [&["train", "imitation", "--config", "cfg.json", "--out", out][..], extra];
+    phalanx(dir, &args.concat())
+}
+
 #[test]
 fn an_imitation_run_stopped_anywhere_resumes_exactly() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("cfg.json"), CONFIG).unwrap();
-    let train = |out: &str, extra: &[&str]| {
-        let args = [&["train", "imitation", "--config", "cfg.json", "--out", out][..], extra];
-        phalanx(d, &args.concat())
-    };
-    let (stdout, _) = check(&train("whole", &[]), 0);
+    let (stdout, _) = check(&train(d, "whole", &[]), 0);
     assert!(stdout.contains("13 of 13"), "{stdout}");
     // Stopped inside cloning, at a round's end, and inside the last round.
-    check(&train("parts", &["--steps", "4"]), 0);
+    check(&train(d, "parts", &["--steps", "4"]), 0);
     for steps in ["9", "11", "13"] {
-        check(&train("parts", &["--resume", "--steps", steps]), 0);
+        check(&train(d, "parts", &["--resume", "--steps", steps]), 0);
     }
     let run = |name: &str| d.join(name);
     assert_eq!(learning(&run("parts")), learning(&run("whole")), "the metrics differ");
@@ -89,11 +94,7 @@ fn validating_within_a_round_keeps_the_best_snapshot_and_resumes_exactly() {
     let d = dir.path();
     let config = CONFIG.replace(r#""rounds": 2"#, r#""rounds": 0, "validate_every": 2"#);
     std::fs::write(d.join("cfg.json"), config).unwrap();
-    let train = |out: &str, extra: &[&str]| {
-        let args = [&["train", "imitation", "--config", "cfg.json", "--out", out][..], extra];
-        phalanx(d, &args.concat())
-    };
-    check(&train("whole", &[]), 0);
+    check(&train(d, "whole", &[]), 0);
     // Stopped at a checkpoint (3), and where a validation and a checkpoint fall together.
     let config = CONFIG.replace(r#""rounds": 2"#, r#""rounds": 0, "validate_every": 3"#);
     std::fs::write(d.join("cfg3.json"), config).unwrap();
@@ -136,6 +137,6 @@ fn validating_within_a_round_keeps_the_best_snapshot_and_resumes_exactly() {
     // A fresh run in the folder forgets the snapshots.
     let fresh = CONFIG.replace(r#""rounds": 2"#, r#""rounds": 0"#);
     std::fs::write(d.join("cfg.json"), fresh).unwrap();
-    check(&train("whole", &[]), 0);
+    check(&train(d, "whole", &[]), 0);
     assert!(!d.join("whole").join("update-2.bin").exists());
 }
