@@ -25,6 +25,7 @@ use burn::tensor::Device;
 use phalanx_core::{Instance, PlanMetrics};
 use phalanx_env::Task;
 use phalanx_eval::Case;
+use phalanx_rl::imitation::finetune::{Finetune, FinetuneConfig};
 use phalanx_rl::imitation::learn::{ImitationConfig, add_to_learner};
 use phalanx_rl::imitation::{self, Dataset};
 use phalanx_rl::policy_file::network_checksum;
@@ -107,7 +108,9 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
     let mut samples = 0;
     let mut best = read_best(dir)?;
-    for round in 0..=config.rounds {
+    // A fine-tuning alone (no cloning update, no round) needs no expert data.
+    let cloning = config.round_end(config.rounds) > 0;
+    for round in (0..=config.rounds).filter(|_| cloning) {
         let end = config.round_end(round);
         let data = round_data(&config, dir, round, &learner, !args.resume)?;
         samples += add_to_learner(&mut learner, &data)
@@ -127,11 +130,12 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
                 format!("round {round}: no episode of the data has a step to learn from")
             })?;
             let updates = learner.counters().updates;
-            sink.record(metrics::IMITATION_LOSS, updates, f64::from(stats.loss))?;
-            sink.record(metrics::IMITATION_ACCURACY, updates, f64::from(stats.accuracy))?;
-            sink.record(metrics::GRAD_NORM, updates, f64::from(stats.grad_norm))?;
-            sink.record(metrics::UPDATE_MS, updates, last.elapsed().as_secs_f64() * 1e3)?;
-            last = Instant::now();
+            let values = [
+                (metrics::IMITATION_LOSS, f64::from(stats.loss)),
+                (metrics::IMITATION_ACCURACY, f64::from(stats.accuracy)),
+                (metrics::GRAD_NORM, f64::from(stats.grad_norm)),
+            ];
+            sink.record_update(updates, &values, &mut last)?;
             bar.set_position(updates);
             bar.set_message(format!(
                 "| round {round} of {}, loss {:.3}, accuracy {:.3}",
@@ -165,11 +169,21 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
             break;
         }
     }
+    if let Some(settings) = &config.finetune
+        && (config.round_end(config.rounds)..stop).contains(&learner.counters().updates)
+    {
+        finetune(&config, settings, &mut learner, stop, &validation, dir, &mut sink)?;
+    }
     let counters = learner.counters();
-    let best = best.map_or_else(
-        || "no round finished yet".to_owned(),
-        |b| format!("round {} (success {:.3}, loss {:.3})", b.round, b.success, b.formation_loss),
-    );
+    let best = match best {
+        _ if config.finetune.is_some() && counters.updates == total => {
+            "the fine-tuned network (finetune.bin)".to_owned()
+        }
+        None => "no round finished yet".to_owned(),
+        Some(b) => {
+            format!("round {} (success {:.3}, loss {:.3})", b.round, b.success, b.formation_loss)
+        }
+    };
     util::print(&util::table(&[
         ("updates", format!("{} of {total}", counters.updates)),
         ("samples", samples.to_string()),
@@ -214,6 +228,21 @@ impl Metrics {
         util::written(writeln!(self.out, "{line}"), &self.path)
     }
 
+    /// Records an update's `values` and the time since `last`, which it resets.
+    fn record_update(
+        &mut self,
+        updates: u64,
+        values: &[(&str, f64)],
+        last: &mut Instant,
+    ) -> anyhow::Result<()> {
+        for &(name, value) in values {
+            self.record(name, updates, value)?;
+        }
+        self.record(metrics::UPDATE_MS, updates, last.elapsed().as_secs_f64() * 1e3)?;
+        *last = Instant::now();
+        Ok(())
+    }
+
     /// Flushes the metrics and redraws the curves.
     fn flush(&mut self) -> anyhow::Result<()> {
         util::written(self.out.flush(), &self.path)?;
@@ -241,6 +270,24 @@ fn keep_best(
     sink: &mut Metrics,
     best: &mut Option<Validation>,
 ) -> anyhow::Result<()> {
+    let figures = validate_snapshot(learner, snapshot, validation, round, dir, sink)?;
+    if best.as_ref().is_none_or(|b| figures.beats(b)) {
+        make_policy(snapshot, dir)?;
+        *best = Some(figures);
+    }
+    Ok(())
+}
+
+/// Writes the learner's policy to `snapshot` and validates it (a line of `validation.jsonl`,
+/// the metrics).
+fn validate_snapshot(
+    learner: &Learner,
+    snapshot: &Path,
+    validation: &[(String, Vec<Instance>)],
+    round: u32,
+    dir: &Path,
+    sink: &mut Metrics,
+) -> anyhow::Result<Validation> {
     util::written(learner.save_policy(snapshot), snapshot)?;
     let updates = learner.counters().updates;
     let figures = validate(&learner.policy(), validation, round, updates)?;
@@ -252,14 +299,75 @@ fn keep_best(
          over the rows)",
         figures.success, figures.formation_loss
     ));
-    if best.as_ref().is_none_or(|b| figures.beats(b)) {
-        let policy = dir.join("policy.bin");
-        let bytes =
-            fs::read(snapshot).with_context(|| format!("reading {}", snapshot.display()))?;
-        util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)?;
-        *best = Some(figures);
+    Ok(figures)
+}
+
+/// Copies `snapshot` to `DIR/policy.bin` (atomically).
+fn make_policy(snapshot: &Path, dir: &Path) -> anyhow::Result<()> {
+    let policy = dir.join("policy.bin");
+    let bytes = fs::read(snapshot).with_context(|| format!("reading {}", snapshot.display()))?;
+    util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)
+}
+
+/// The fine-tuning on the meta reward after the rounds ([`Finetune`]), up to `stop` updates:
+/// one update per iteration, the iteration being the updates since the rounds' end, so a
+/// resumed run goes on where its checkpoint stopped. Its first update starts a fresh Adam at
+/// its learning rate. Snapshots every `validate_every` updates are validated (logged, not
+/// chosen from); at its end the fine-tuned network, `finetune.bin`, is `policy.bin`.
+#[allow(clippy::too_many_arguments)]
+fn finetune(
+    config: &ImitationConfig,
+    finetune: &FinetuneConfig,
+    learner: &mut Learner,
+    stop: u64,
+    validation: &[(String, Vec<Instance>)],
+    dir: &Path,
+    sink: &mut Metrics,
+) -> anyhow::Result<()> {
+    let (start, total) =
+        (config.round_end(config.rounds), config.total_updates().expect("checked"));
+    let run = Finetune::new(finetune.clone(), config.data.env.clone())
+        .map_err(|err| anyhow::anyhow!("imitation settings: {err}"))?;
+    if learner.counters().updates == start {
+        learner.restart_optimizer(finetune.lr);
     }
-    Ok(())
+    let round = config.rounds + 1;
+    let bar = util::rate_bar(total, learner.counters().updates, "updates");
+    let mut last = Instant::now();
+    while learner.counters().updates < stop {
+        let stats = run.iteration(learner, learner.counters().updates - start);
+        let updates = learner.counters().updates;
+        let values = [
+            (metrics::FINETUNE_RETURN, stats.ret),
+            (metrics::FINETUNE_SUCCESS, stats.success),
+            (metrics::FINETUNE_FORMATION_LOSS, stats.formation_loss),
+            (metrics::FINETUNE_STEPS, stats.steps),
+            (metrics::POLICY_LOSS, f64::from(stats.policy_loss)),
+            (metrics::GRAD_NORM, f64::from(stats.grad_norm)),
+        ];
+        sink.record_update(updates, &values, &mut last)?;
+        bar.set_position(updates);
+        bar.set_message(format!(
+            "| fine-tuning, {} agents on {}²: success {:.2}, steps {:.1}, loss {:.2}",
+            stats.n_agents, stats.side, stats.success, stats.steps, stats.formation_loss
+        ));
+        if config.validate_every.is_some_and(|every| updates.is_multiple_of(every))
+            && updates < total
+        {
+            let snapshot = dir.join(format!("update-{updates}.bin"));
+            bar.suspend(|| validate_snapshot(learner, &snapshot, validation, round, dir, sink))?;
+        }
+        if updates.is_multiple_of(config.checkpoint_every) && updates < total {
+            save(learner, dir, sink)?;
+        }
+    }
+    bar.finish_and_clear();
+    if learner.counters().updates == total {
+        let snapshot = dir.join("finetune.bin");
+        validate_snapshot(learner, &snapshot, validation, round, dir, sink)?;
+        make_policy(&snapshot, dir)?;
+    }
+    save(learner, dir, sink)
 }
 
 /// The metrics flushed, then the checkpoint written atomically.

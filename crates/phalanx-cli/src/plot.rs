@@ -31,9 +31,11 @@ const RUN_PANELS: [(&str, &str); 6] = [
 ];
 
 /// The panels of an imitation run's `curves.svg` (the step axis counts updates).
-const IMITATION_PANELS: [(&str, &str); 4] = [
+const IMITATION_PANELS: [(&str, &str); 6] = [
     (metrics::IMITATION_LOSS, "cloning loss (cross-entropy)"),
     (metrics::IMITATION_ACCURACY, "label accuracy"),
+    (metrics::FINETUNE_RETURN, "fine-tuning return (rollouts)"),
+    (metrics::FINETUNE_FORMATION_LOSS, "fine-tuning Table II loss (rollouts)"),
     (metrics::VAL_SUCCESS, "validation success (greedy)"),
     (metrics::VAL_FORMATION_LOSS, "validation Table II loss"),
 ];

@@ -33,6 +33,7 @@ use serde::{Deserialize, Serialize};
 use crate::policy::Policy;
 
 pub mod file;
+pub mod finetune;
 pub mod learn;
 
 pub use file::{DataError, Dataset};

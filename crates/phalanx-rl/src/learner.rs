@@ -213,6 +213,52 @@ impl Learner {
     /// averaged over filled rows; global-norm clipping, Adam. The target network follows the
     /// online one (cloning has no bootstrap).
     pub fn imitation_update_on(&mut self, batch: &Batch) -> ImitationStats {
+        let (chosen, filled, correct) = self.label_log_probs(batch, 1.0);
+        let n_filled = filled.iter().sum::<f32>().max(1.0);
+        let filled = tensor2(filled, [batch.batch * batch.n_agents, batch.len], &self.device);
+        let loss = (chosen * filled).sum().neg().div_scalar(n_filled); // [1]
+        let (loss, grad_norm) = self.descend(loss);
+        ImitationStats { loss, accuracy: correct / n_filled, grad_norm }
+    }
+
+    /// One policy-gradient update of the student on its own episodes `batch` (whose actions
+    /// it drew itself from the softmax of its scores at `temperature`,
+    /// [`crate::Policy::set_sampling`]), each sequence `b` weighted by `advantages[b]`:
+    /// `−Σ A_b log π(a | s)` over the filled rows, divided by their count (`π` the softmax at
+    /// `temperature`, each agent's message holding the actions of the agents ranked before
+    /// it); global-norm clipping, one Adam step. Returns that loss and the gradient norm.
+    ///
+    /// # Panics
+    /// If `advantages` has not one value per sequence.
+    pub fn policy_gradient_update_on(
+        &mut self,
+        batch: &Batch,
+        advantages: &[f32],
+        temperature: f32,
+    ) -> (f32, f32) {
+        assert_eq!(advantages.len(), batch.batch, "one advantage per sequence");
+        let (chosen, filled, _) = self.label_log_probs(batch, temperature);
+        let n_filled = filled.iter().sum::<f32>().max(1.0);
+        let rows_per_seq = batch.n_agents * batch.len;
+        let weights: Vec<f32> =
+            filled.iter().enumerate().map(|(i, &f)| f * advantages[i / rows_per_seq]).collect();
+        let weights = tensor2(weights, [batch.batch * batch.n_agents, batch.len], &self.device);
+        let loss = (chosen * weights).sum().neg().div_scalar(n_filled); // [1]
+        self.descend(loss)
+    }
+
+    /// A fresh Adam (the moments of the updates so far forgotten) at learning rate `lr`: the
+    /// start of a phase with another objective (the fine-tuning after cloning).
+    pub fn restart_optimizer(&mut self, lr: f64) {
+        self.optim = AdamConfig::new().init();
+        self.config.lr = lr;
+    }
+
+    /// The log-probability `[B·N, L]` of each row's action of `batch` under the softmax of
+    /// its masked scores divided by `temperature` (each agent's message holding the actions of the agents ranked
+    /// before it), the filled flag of each row (`[B·N·L]`) and how many filled rows' greedy
+    /// action is the batch's.
+    fn label_log_probs(&self, batch: &Batch, temperature: f32) -> (Tensor<2>, Vec<f32>, f32) {
         let cfg = &self.net_config;
         let (n_batch, n_agents, len) = (batch.batch, batch.n_agents, batch.len);
         let (n_obs, n_actions, rows) = (len + 1, cfg.n_actions, batch.batch * batch.n_agents);
@@ -229,7 +275,7 @@ impl Learner {
             &self.device,
         );
         let scores = mask_q(scores, allowed).narrow(1, 0, len); // [B*N, L, A]
-        let log_p = log_softmax(scores.clone(), 2); // [B*N, L, A]
+        let log_p = log_softmax(scores.clone().div_scalar(temperature), 2); // [B*N, L, A]
         let idx: Vec<i64> = batch.actions.iter().map(|&a| i64::from(a)).collect();
         let idx = Tensor::<3, Int>::from_data(TensorData::new(idx, [rows, len, 1]), &self.device);
         let chosen = log_p.gather(2, idx).reshape([rows, len]); // [B*N, L]
@@ -239,7 +285,6 @@ impl Learner {
                 filled.extend_from_slice(&batch.filled[b * len..(b + 1) * len]);
             }
         }
-        let n_filled = filled.iter().sum::<f32>().max(1.0);
         let greedy = to_vec(scores.detach()); // [B*N, L, A]
         let correct: f32 = (0..rows * len)
             .filter(|&row| filled[row] > 0.0)
@@ -249,10 +294,7 @@ impl Learner {
                 best == usize::from(batch.actions[row])
             })
             .count() as f32;
-        let filled = tensor2(filled, [rows, len], &self.device); // [B*N, L]
-        let loss = (chosen * filled).sum().neg().div_scalar(n_filled); // [1]
-        let (loss, grad_norm) = self.descend(loss);
-        ImitationStats { loss, accuracy: correct / n_filled, grad_norm }
+        (chosen, filled, correct)
     }
 
     /// One gradient update on the given batch.

@@ -93,12 +93,14 @@ pub enum ModelError {
     },
 }
 
-/// The weights file of `dir`, or of the shipped model `name` when `dir` is `None`.
+/// The weights file `dir` itself when it is a file, else the one in the directory `dir`, or
+/// that of the shipped model `name` when `dir` is `None`.
 ///
 /// # Errors
 /// [`ModelError::NoWeights`] when no directory searched holds one.
 pub fn weights_file(dir: Option<&Path>, name: &str) -> Result<PathBuf, ModelError> {
     let candidates: Vec<PathBuf> = match dir {
+        Some(file) if file.is_file() => return Ok(file.to_path_buf()),
         Some(dir) => vec![dir.to_path_buf()],
         None => default_dirs(name),
     };
@@ -139,10 +141,7 @@ pub fn load_with_header(
     path: Option<&Path>,
     name: &str,
 ) -> Result<(Policy, Header, PathBuf), ModelError> {
-    let file = match path {
-        Some(path) if path.is_file() => path.to_path_buf(),
-        other => weights_file(other, name)?,
-    };
+    let file = weights_file(path, name)?;
     let (mut policy, header) = load_policy_any(&file, &Device::flex())
         .map_err(|source| ModelError::Load { name: name.to_owned(), source })?;
     check_kind(&file, &header, name)?;

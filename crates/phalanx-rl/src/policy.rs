@@ -37,6 +37,9 @@ pub struct Policy {
     stuck: Vec<Stuck>,
     /// The team vector's dead band of the environments it acts in ([`Policy::env_config`]).
     team_deadband: f64,
+    /// When set, actions are drawn from the softmax of the masked scores at this
+    /// temperature instead of taken greedily ([`Policy::set_sampling`]).
+    sampling: Option<f32>,
 }
 
 /// Why a saved recurrent state does not fit a policy's network.
@@ -72,6 +75,7 @@ impl Policy {
             escape: None,
             team_deadband: phalanx_env::obs::TEAM_DEADBAND,
             stuck: vec![],
+            sampling: None,
         }
     }
 
@@ -80,6 +84,21 @@ impl Policy {
     pub fn set_escape(&mut self, escape: Option<Escape>) {
         self.escape = escape;
         self.stuck.clear();
+    }
+
+    /// Draws each action from the softmax of the agent's masked scores divided by
+    /// `temperature` instead of taking the best (`None`: greedy, the default): the
+    /// stochastic policy of the student's fine-tuning on the meta reward
+    /// ([`crate::imitation::finetune`]). ε-random actions and the stall escape come first.
+    ///
+    /// # Panics
+    /// If the temperature is not a positive number.
+    pub fn set_sampling(&mut self, temperature: Option<f32>) {
+        assert!(
+            temperature.is_none_or(|t| t.is_finite() && t > 0.0),
+            "temperature {temperature:?}"
+        );
+        self.sampling = temperature;
     }
 
     /// The stall escape it acts with.
@@ -429,6 +448,8 @@ impl<'s> Turns<'s> {
                 && let Some(out) = stuck[row].step_out(rule, mask)
             {
                 out
+            } else if let Some(temperature) = policy.sampling {
+                masked_sample(q, mask, temperature, rng)
             } else {
                 masked_argmax(q, mask)
             };
@@ -439,6 +460,24 @@ impl<'s> Turns<'s> {
             self.messages[e * msg_dim + agent_idx * n_actions + action] = 1.0;
         }
     }
+}
+
+/// An allowed action drawn from the softmax of the scores `q` divided by `temperature`.
+fn masked_sample(q: &[f32], mask: &[bool], temperature: f32, rng: &mut ChaCha8Rng) -> usize {
+    let best = masked_argmax(q, mask);
+    let weights: Vec<f64> = q
+        .iter()
+        .zip(mask)
+        .map(|(&v, &ok)| if ok { f64::from((v - q[best]) / temperature).exp() } else { 0.0 })
+        .collect();
+    let mut draw = rng.random::<f64>() * weights.iter().sum::<f64>();
+    for (a, &w) in weights.iter().enumerate() {
+        if w > 0.0 && draw < w {
+            return a;
+        }
+        draw -= w;
+    }
+    best
 }
 
 /// Where each episode's agents start in a batch laid out episode after episode: the running

@@ -218,6 +218,21 @@ impl Batch {
         }
     }
 
+    /// The whole episodes `episodes` (of `n_agents` agents and observations of `shape`) as
+    /// one batch, in their order, padded to the longest.
+    ///
+    /// # Panics
+    /// If an episode has another team size.
+    pub fn of_episodes(episodes: &[&Episode], n_agents: usize, shape: ObsShape) -> Batch {
+        let len = episodes.iter().map(|ep| ep.len).max().unwrap_or(1);
+        let mut res = Batch::empty(episodes.len(), n_agents, len, shape);
+        for (b, ep) in episodes.iter().enumerate() {
+            assert_eq!(ep.n_agents, n_agents, "an episode of another team size");
+            res.copy_from(b, ep, 0, ep.len + 1, 0);
+        }
+        res
+    }
+
     /// Copy episode `ep`'s observations `from..from + n_obs` and transitions
     /// `from..from + n_obs - 1` into sequence `b`; transitions from `train_from` on are filled.
     fn copy_from(&mut self, b: usize, ep: &Episode, from: usize, n_obs: usize, train_from: usize) {
@@ -319,13 +334,8 @@ impl Replay {
         let (n_agents, shape) = (self.n_agents, self.shape);
         match mode {
             SequenceMode::Episodes => {
-                let len = picks.iter().map(|&idx| self.episodes[idx].len).max().unwrap_or(1);
-                let mut res = Batch::empty(batch, n_agents, len, shape);
-                for (b, &idx) in picks.iter().enumerate() {
-                    let ep = &self.episodes[idx];
-                    res.copy_from(b, ep, 0, ep.len + 1, 0);
-                }
-                res
+                let picked: Vec<&Episode> = picks.iter().map(|&idx| &self.episodes[idx]).collect();
+                Batch::of_episodes(&picked, n_agents, shape)
             }
             SequenceMode::Windows { len: window, burn_in } => {
                 assert!(window > 0, "window length must be positive");

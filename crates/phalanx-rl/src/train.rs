@@ -45,6 +45,16 @@ pub mod metrics {
     pub const IMITATION_ACCURACY: &str = "charts/imitation_accuracy";
     /// Imitation: samples (agents × steps) in the training data.
     pub const IMITATION_SAMPLES: &str = "charts/imitation_samples";
+    /// Fine-tuning: mean return of an iteration's rollouts (the negative meta cost).
+    pub const FINETUNE_RETURN: &str = "charts/finetune_return";
+    /// Fine-tuning: share of an iteration's rollouts that reached the goals.
+    pub const FINETUNE_SUCCESS: &str = "charts/finetune_success";
+    /// Fine-tuning: mean Table II formation loss of an iteration's rollouts.
+    pub const FINETUNE_FORMATION_LOSS: &str = "charts/finetune_formation_loss";
+    /// Fine-tuning: mean steps of an iteration's rollouts.
+    pub const FINETUNE_STEPS: &str = "charts/finetune_steps";
+    /// Fine-tuning: the policy-gradient loss of an update.
+    pub const POLICY_LOSS: &str = "losses/policy_gradient";
     /// Imitation: the greedy student's success rate on the validation instances.
     pub const VAL_SUCCESS: &str = "val/success_rate";
     /// Imitation: the greedy student's Table II formation loss on the validation instances

@@ -7,13 +7,13 @@ use std::process::Output;
 
 use super::{check, learning, phalanx};
 
-/// A tiny run: a few 16² pool maps, teams of 3, the fast expert, two DAgger rounds,
-/// validation on the 20² rows only.
+/// A tiny run: a few 16² pool maps, teams of 3, the fast expert, two DAgger rounds, no
+/// fine-tuning, validation on the 20² rows only.
 pub(crate) const CONFIG: &str = r#"{
     "data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4, "seed": 2,
              "expert": "swarm"},
     "batch_size": 2, "updates": 5, "rounds": 2, "round_episodes": 2, "round_updates": 4,
-    "checkpoint_every": 3, "validation_maps": 1, "validation_max_side": 20
+    "checkpoint_every": 3, "validation_maps": 1, "validation_max_side": 20, "finetune": null
 }"#;
 
 /// `phalanx train imitation --config cfg.json --out OUT EXTRA…` in `dir`.
@@ -139,4 +139,48 @@ fn validating_within_a_round_keeps_the_best_snapshot_and_resumes_exactly() {
     std::fs::write(d.join("cfg.json"), fresh).unwrap();
     check(&train(d, "whole", &[]), 0);
     assert!(!d.join("whole").join("update-2.bin").exists());
+}
+
+#[test]
+fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let finetune = r#""rounds": 0, "finetune": {"pools": [{"n_maps": 3, "size": 16}],
+        "agents": [3], "iterations": 5, "instances": 1, "rollouts": 3}"#;
+    let config = CONFIG.replace(r#""rounds": 2"#, finetune).replace(r#", "finetune": null"#, "");
+    std::fs::write(d.join("cfg.json"), config).unwrap();
+    let (stdout, _) = check(&train(d, "whole", &[]), 0);
+    assert!(stdout.contains("10 of 10") && stdout.contains("fine-tuned"), "{stdout}");
+    // Stopped at the cloning's end, at a checkpoint inside the fine-tuning, and after it.
+    check(&train(d, "parts", &["--steps", "5"]), 0);
+    for steps in ["6", "9"] {
+        check(&train(d, "parts", &["--resume", "--steps", steps]), 0);
+    }
+    check(&train(d, "parts", &["--resume"]), 0);
+    let read = |run: &str, file: &str| std::fs::read(d.join(run).join(file)).unwrap();
+    assert_eq!(learning(&d.join("parts")), learning(&d.join("whole")), "the metrics differ");
+    for file in ["finetune.bin", "policy.bin", "round-0.bin", "validation.jsonl"] {
+        assert!(read("parts", file) == read("whole", file), "{file} differs");
+    }
+    assert!(read("whole", "policy.bin") == read("whole", "finetune.bin"));
+    assert!(read("whole", "policy.bin") != read("whole", "round-0.bin"));
+    let metrics = String::from_utf8(read("whole", "metrics.jsonl")).unwrap();
+    let returns = metrics.lines().filter(|l| l.contains("charts/finetune_return")).count();
+    assert_eq!(returns, 5, "one return per iteration");
+
+    // A student fine-tuned alone (no cloning, no expert data), from a policy file.
+    let alone = r#"{"init_from": "whole/round-0.bin", "updates": 0, "rounds": 0,
+        "validation_maps": 1, "validation_max_side": 20,
+        "finetune": {"pools": [{"n_maps": 3, "size": 16}], "agents": [3], "iterations": 2,
+        "instances": 1, "rollouts": 2}}"#;
+    std::fs::write(d.join("alone.json"), alone).unwrap();
+    let args = ["train", "imitation", "--config", "alone.json", "--out", "alone"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    assert!(stdout.contains("2 of 2"), "{stdout}");
+    assert!(!d.join("alone/data-0.bin").exists(), "no expert data for a fine-tuning alone");
+    // Settings a fine-tuning cannot follow are refused with the field.
+    std::fs::write(d.join("bad.json"), r#"{"finetune": {"temperature": 0}}"#).unwrap();
+    let bad = ["train", "imitation", "--config", "bad.json", "--out", "bad"];
+    let (_, stderr) = check(&phalanx(d, &bad), 2);
+    assert!(stderr.contains("finetune.temperature"), "{stderr}");
 }

@@ -19,6 +19,7 @@ use phalanx_env::obs::VECTOR_LEN;
 use phalanx_env::{EnvConfig, LeaderRule, ObsBuffers, PoolConfig, Task, TaskEnv};
 use serde::{Deserialize, Serialize};
 
+use super::finetune::FinetuneConfig;
 use super::{DataConfig, DataError, Dataset, ExpertChoice, ExpertEpisode, StudentRollouts};
 use crate::learner::{Learner, LearnerConfig};
 use crate::net::QNetConfig;
@@ -81,6 +82,9 @@ pub struct ImitationConfig {
     pub validation_seed: u64,
     /// Validate on the rows of maps at most this side only (`None`: every row).
     pub validation_max_side: Option<u32>,
+    /// Fine-tuning on the meta reward after cloning and the rounds, one update per
+    /// iteration ([`super::finetune`]; `null`: none).
+    pub finetune: Option<FinetuneConfig>,
 }
 
 impl Default for ImitationConfig {
@@ -110,6 +114,7 @@ impl Default for ImitationConfig {
             validate_every: None,
             validation_seed: 1,
             validation_max_side: None,
+            finetune: Some(FinetuneConfig::default()),
         }
     }
 }
@@ -192,6 +197,15 @@ impl ImitationConfig {
         if self.grad_clip_norm.is_some_and(|it| !(it.is_finite() && it > 0.0)) {
             return Err(format!("grad_clip_norm: {:?} is not positive", self.grad_clip_norm));
         }
+        if let Some(finetune) = &self.finetune {
+            finetune.check()?;
+            if let Some(&n) = finetune.agents.iter().find(|&&n| n == 0 || n > net.n_agents_max) {
+                return Err(format!(
+                    "finetune.agents: {n} agents do not fit {} slots",
+                    net.n_agents_max
+                ));
+            }
+        }
         self.total_updates().map(|_| ()).ok_or_else(|| "the updates overflow".to_owned())
     }
 
@@ -213,7 +227,13 @@ impl ImitationConfig {
 
     /// Updates of the whole run (`None` on overflow).
     pub fn total_updates(&self) -> Option<u64> {
-        self.round_updates.checked_mul(u64::from(self.rounds))?.checked_add(self.updates)
+        let finetune = self.finetune.as_ref().map_or(0, |it| it.iterations);
+        self.round_end_checked(self.rounds)?.checked_add(finetune)
+    }
+
+    /// [`ImitationConfig::round_end`], `None` on overflow.
+    fn round_end_checked(&self, round: u32) -> Option<u64> {
+        self.round_updates.checked_mul(u64::from(round))?.checked_add(self.updates)
     }
 
     /// The update count at which `round` ends (round 0 is cloning).
@@ -407,9 +427,20 @@ mod tests {
 
     #[test]
     fn the_schedule_follows_the_update_count() {
-        let config =
-            ImitationConfig { updates: 100, rounds: 3, round_updates: 40, ..Default::default() };
+        let config = ImitationConfig {
+            updates: 100,
+            rounds: 3,
+            round_updates: 40,
+            finetune: None,
+            ..Default::default()
+        };
         assert_eq!(config.total_updates(), Some(220));
+        let finetune = ImitationConfig {
+            finetune: Some(FinetuneConfig { iterations: 30, ..FinetuneConfig::default() }),
+            ..config.clone()
+        };
+        assert_eq!(finetune.total_updates(), Some(250));
+        assert_eq!(finetune.round_end(3), 220, "the fine-tuning follows the rounds");
         assert_eq!(
             (config.round_end(0), config.round_end(1), config.round_end(3)),
             (100, 140, 220)
@@ -454,5 +485,10 @@ mod tests {
         assert!(bad(r#"{"data": {"env": {"fov": 8}}}"#).contains("data.env: field of view 8"));
         assert!(bad("{\n \"rounds\": \"x\"}").contains("line 2"));
         assert!(bad(r#"{"updates": 18446744073709551615, "rounds": 1}"#).contains("overflow"));
+        assert!(bad(r#"{"finetune": {"rollouts": 1}}"#).contains("2 rollouts"));
+        assert!(bad(r#"{"finetune": {"agents": [9]}}"#).contains("finetune.agents"));
+        assert!(bad(r#"{"finetune": {"lr": 0}}"#).contains("finetune.lr"));
+        let none = ImitationConfig::from_json(r#"{"finetune": null}"#).unwrap();
+        assert_eq!(none.total_updates(), Some(none.updates));
     }
 }
