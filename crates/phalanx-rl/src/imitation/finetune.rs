@@ -175,8 +175,8 @@ impl Finetune {
         let returns: Vec<f64> = played
             .iter()
             .map(|p| {
-                -(cfg.step_cost * p.steps as f64 + p.loss_sum) / f64::from(side)
-                    - if p.success { 0.0 } else { cfg.fail_cost }
+                -(cfg.step_cost * p.episode.len as f64 + p.loss_sum) / f64::from(side)
+                    - if p.episode.terminated { 0.0 } else { cfg.fail_cost }
             })
             .collect();
         let advantages = group_advantages(&returns, cfg.rollouts, cfg.min_spread);
@@ -188,8 +188,8 @@ impl Finetune {
         IterationStats {
             n_agents: n,
             side,
-            success: played.iter().filter(|p| p.success).count() as f64 / count,
-            steps: played.iter().map(|p| p.steps as f64).sum::<f64>() / count,
+            success: played.iter().filter(|p| p.episode.terminated).count() as f64 / count,
+            steps: played.iter().map(|p| p.episode.len as f64).sum::<f64>() / count,
             formation_loss: played.iter().map(|p| p.loss_sum).sum::<f64>()
                 / count
                 / f64::from(side),
@@ -217,13 +217,7 @@ impl Finetune {
                     .expect("the pool's teams fit the environment");
                 let mut o = ObsBuffers::new(n, env.obs_shape());
                 env.reset_to(instance, &mut o).expect("pool instances fit the environment");
-                played.push(Played {
-                    episode: Episode::start(&o),
-                    steps: 0,
-                    loss_sum: 0.0,
-                    success: false,
-                    done: false,
-                });
+                played.push(Played { episode: Episode::start(&o), loss_sum: 0.0, done: false });
                 envs.push(env);
                 obs.push(o);
             }
@@ -239,11 +233,9 @@ impl Finetune {
                 let joint = &actions[e * n..(e + 1) * n];
                 let out = envs[e].step(joint, &mut obs[e]);
                 p.episode.push_step(joint, out.team_reward, &obs[e]);
-                p.steps += 1;
                 p.loss_sum += out.formation_loss;
                 if out.terminated || out.truncated {
                     p.done = true;
-                    p.success = out.terminated;
                     p.episode.terminated = out.terminated;
                 }
             }
@@ -252,12 +244,10 @@ impl Finetune {
     }
 }
 
-/// One rollout.
+/// One rollout: its episode (its steps, and whether it reached the goals), `Σ L_f`.
 struct Played {
     episode: Episode,
-    steps: usize,
     loss_sum: f64,
-    success: bool,
     done: bool,
 }
 
