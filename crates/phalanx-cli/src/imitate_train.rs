@@ -91,6 +91,8 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
         "{}: the checkpoint's network is not the one of the settings",
         checkpoint.display()
     );
+    // The student acts, is validated and is saved with the band it learns with.
+    learner.set_team_deadband(config.data.env.team_deadband).expect("checked with the settings");
     if !config.data.pool.maps.is_empty() {
         phalanx_env::TrainPool::new(&config.data.pool).context("the training pool")?;
     }
@@ -123,39 +125,26 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
         if before == start {
             sink.record(metrics::IMITATION_SAMPLES, before, samples as f64)?;
         }
-        let bar = util::rate_bar(total, before, "updates");
-        let mut last = Instant::now();
-        while learner.counters().updates < end.min(stop) {
+        let step = |learner: &mut Learner| {
             let stats = learner.imitation_update().with_context(|| {
                 format!("round {round}: no episode of the data has a step to learn from")
             })?;
-            let updates = learner.counters().updates;
-            let values = [
+            let values = vec![
                 (metrics::IMITATION_LOSS, f64::from(stats.loss)),
                 (metrics::IMITATION_ACCURACY, f64::from(stats.accuracy)),
                 (metrics::GRAD_NORM, f64::from(stats.grad_norm)),
             ];
-            sink.record_update(updates, &values, &mut last)?;
-            bar.set_position(updates);
-            bar.set_message(format!(
+            let message = format!(
                 "| round {round} of {}, loss {:.3}, accuracy {:.3}",
                 config.rounds, stats.loss, stats.accuracy
-            ));
-            // Validated before the checkpoint of the same update: a run stopped between
-            // the two resumes before both and validates again.
-            if config.validate_every.is_some_and(|every| updates.is_multiple_of(every))
-                && updates < end
-            {
-                let snapshot = dir.join(format!("update-{updates}.bin"));
-                bar.suspend(|| {
-                    keep_best(&learner, &snapshot, &validation, round, dir, &mut sink, &mut best)
-                })?;
-            }
-            if updates.is_multiple_of(config.checkpoint_every) && updates < end {
-                save(&learner, dir, &mut sink)?;
-            }
-        }
-        bar.finish_and_clear();
+            );
+            Ok((values, message))
+        };
+        let validate = |learner: &Learner, snapshot: &Path, sink: &mut Metrics| {
+            keep_best(learner, snapshot, &validation, round, dir, sink, &mut best)
+        };
+        let span = Span { until: end.min(stop), end, total };
+        update_loop(&config, &mut learner, span, dir, &mut sink, step, validate)?;
         let updates = learner.counters().updates;
         if updates < end {
             save(&learner, dir, &mut sink)?;
@@ -332,12 +321,9 @@ fn finetune(
         learner.restart_optimizer(finetune.lr);
     }
     let round = config.rounds + 1;
-    let bar = util::rate_bar(total, learner.counters().updates, "updates");
-    let mut last = Instant::now();
-    while learner.counters().updates < stop {
+    let step = |learner: &mut Learner| {
         let stats = run.iteration(learner, learner.counters().updates - start);
-        let updates = learner.counters().updates;
-        let values = [
+        let values = vec![
             (metrics::FINETUNE_RETURN, stats.ret),
             (metrics::FINETUNE_SUCCESS, stats.success),
             (metrics::FINETUNE_FORMATION_LOSS, stats.formation_loss),
@@ -345,29 +331,76 @@ fn finetune(
             (metrics::POLICY_LOSS, f64::from(stats.policy_loss)),
             (metrics::GRAD_NORM, f64::from(stats.grad_norm)),
         ];
-        sink.record_update(updates, &values, &mut last)?;
-        bar.set_position(updates);
-        bar.set_message(format!(
+        let message = format!(
             "| fine-tuning, {} agents on {}²: success {:.2}, steps {:.1}, loss {:.2}",
             stats.n_agents, stats.side, stats.success, stats.steps, stats.formation_loss
-        ));
-        if config.validate_every.is_some_and(|every| updates.is_multiple_of(every))
-            && updates < total
-        {
-            let snapshot = dir.join(format!("update-{updates}.bin"));
-            bar.suspend(|| validate_snapshot(learner, &snapshot, validation, round, dir, sink))?;
-        }
-        if updates.is_multiple_of(config.checkpoint_every) && updates < total {
-            save(learner, dir, sink)?;
-        }
-    }
-    bar.finish_and_clear();
+        );
+        Ok((values, message))
+    };
+    let validate = |learner: &Learner, snapshot: &Path, sink: &mut Metrics| {
+        validate_snapshot(learner, snapshot, validation, round, dir, sink).map(|_| ())
+    };
+    update_loop(
+        config,
+        learner,
+        Span { until: stop, end: total, total },
+        dir,
+        sink,
+        step,
+        validate,
+    )?;
     if learner.counters().updates == total {
         let snapshot = dir.join("finetune.bin");
         validate_snapshot(learner, &snapshot, validation, round, dir, sink)?;
         make_policy(&snapshot, dir)?;
     }
     save(learner, dir, sink)
+}
+
+/// The updates a loop makes: up to `until`; its snapshots and checkpoints only before `end`
+/// (the one at `end` is the caller's); the bar counts to `total`.
+struct Span {
+    until: u64,
+    end: u64,
+    total: u64,
+}
+
+/// An update's metrics and the bar's message.
+type Step = (Vec<(&'static str, f64)>, String);
+
+/// Updates with `step` over `span`, recording each update's metrics and showing them on the
+/// bar; every `validate_every` updates `validate` takes a snapshot `update-N.bin`, every
+/// `checkpoint_every` the learner is saved. A snapshot is validated before the checkpoint of
+/// the same update: a run stopped between the two resumes before both and validates again.
+fn update_loop(
+    config: &ImitationConfig,
+    learner: &mut Learner,
+    span: Span,
+    dir: &Path,
+    sink: &mut Metrics,
+    mut step: impl FnMut(&mut Learner) -> anyhow::Result<Step>,
+    mut validate: impl FnMut(&Learner, &Path, &mut Metrics) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let bar = util::rate_bar(span.total, learner.counters().updates, "updates");
+    let mut last = Instant::now();
+    while learner.counters().updates < span.until {
+        let (values, message) = step(learner)?;
+        let updates = learner.counters().updates;
+        sink.record_update(updates, &values, &mut last)?;
+        bar.set_position(updates);
+        bar.set_message(message);
+        if config.validate_every.is_some_and(|every| updates.is_multiple_of(every))
+            && updates < span.end
+        {
+            let snapshot = dir.join(format!("update-{updates}.bin"));
+            bar.suspend(|| validate(learner, &snapshot, sink))?;
+        }
+        if updates.is_multiple_of(config.checkpoint_every) && updates < span.end {
+            save(learner, dir, sink)?;
+        }
+    }
+    bar.finish_and_clear();
+    Ok(())
 }
 
 /// The metrics flushed, then the checkpoint written atomically.

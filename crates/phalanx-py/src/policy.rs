@@ -59,6 +59,13 @@ impl PyPolicy {
         self.policy.config().env_vec
     }
 
+    /// The team vector's dead band it was trained with, in cells (1.5 unless its file says
+    /// otherwise): the `team_deadband` of the environments it should act in.
+    #[getter]
+    fn team_deadband(&self) -> f64 {
+        self.policy.team_deadband()
+    }
+
     /// The stall escape it acts with, `"VISITS:PROB"`, or `None` (greedy as trained): the
     /// imitation student's is `"4:0.5"` (docs/imitation.md). Set `"off"` (or `None`) or another
     /// `"VISITS:PROB"`.

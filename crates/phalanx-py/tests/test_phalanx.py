@@ -440,6 +440,7 @@ def test_a_trained_imitation_student_plays_in_python_as_phalanx_solve(instance_f
     subprocess.run([phalanx_bin(), *train], check=True, capture_output=True)
     policy = phalanx.load_policy("imitation", weights=student)
     assert policy.vector_len == 9
+    assert policy.team_deadband == phalanx.TEAM_DEADBAND
     # The student acts with its stall escape, as in `phalanx solve` (compared below).
     assert policy.escape == "4:0.5"
     policy.escape = "off"

@@ -29,6 +29,8 @@ impl Learner {
             rng_stream: self.rng.get_stream(),
             rng_word_pos: [(word_pos >> 64) as u64, word_pos as u64],
             meta: self.meta.clone(),
+            team_deadband: (self.team_deadband != phalanx_env::obs::TEAM_DEADBAND)
+                .then_some(self.team_deadband),
         }
     }
 
@@ -110,6 +112,8 @@ impl Learner {
             .map_err(|err| record_error(path, "optimizer", err))?;
         learner.counters = file.header.counters;
         learner.meta = file.header.meta.clone();
+        learner.team_deadband =
+            file.header.team_deadband.unwrap_or(phalanx_env::obs::TEAM_DEADBAND);
         let mut rng = ChaCha8Rng::from_seed(file.header.rng_seed);
         rng.set_stream(file.header.rng_stream);
         let [high, low] = file.header.rng_word_pos;

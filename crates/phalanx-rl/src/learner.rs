@@ -64,6 +64,9 @@ pub struct Learner {
     pub(crate) counters: Counters,
     /// For a meta policy: what its checkpoints and policy files record of the hierarchy.
     pub(crate) meta: Option<MetaInfo>,
+    /// The team vector's dead band of the environments it learns in: its policies act with
+    /// it and its files record it ([`Learner::set_team_deadband`]).
+    pub(crate) team_deadband: f64,
 }
 
 impl Learner {
@@ -111,6 +114,7 @@ impl Learner {
             rng,
             counters: Counters::default(),
             meta: None,
+            team_deadband: phalanx_env::obs::TEAM_DEADBAND,
         }
     }
 
@@ -174,9 +178,25 @@ impl Learner {
         &mut self.rng
     }
 
-    /// A greedy/ε-greedy acting policy with the current online weights (no autodiff).
+    /// A greedy/ε-greedy acting policy with the current online weights (no autodiff), acting
+    /// with the learner's team-vector dead band.
     pub fn policy(&self) -> Policy {
-        Policy::new(&self.online.valid(), self.net_config.clone())
+        let mut policy = Policy::new(&self.online.valid(), self.net_config.clone());
+        policy.set_team_deadband(self.team_deadband).expect("checked when set");
+        policy
+    }
+
+    /// Learns in environments whose team vector has the dead band `cells`
+    /// ([`phalanx_env::EnvConfig::team_deadband`]): its policies act with it, and its
+    /// checkpoints and policy files record it where it is not the default, so a policy loaded
+    /// from them acts as trained.
+    ///
+    /// # Errors
+    /// A band that is negative or not a number.
+    pub fn set_team_deadband(&mut self, cells: f64) -> Result<(), phalanx_env::EnvError> {
+        phalanx_env::check_team_deadband(cells)?;
+        self.team_deadband = cells;
+        Ok(())
     }
 
     /// One gradient update on a batch sampled from one agent count's buffer; `None` while no

@@ -129,6 +129,11 @@ pub struct Header {
     /// over.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub meta: Option<MetaInfo>,
+    /// The team vector's dead band the network was trained with, where it is not the
+    /// default ([`phalanx_env::obs::TEAM_DEADBAND`]): a policy loaded from the file acts with
+    /// it ([`Policy::team_deadband`]). Not written when the default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub team_deadband: Option<f64>,
 }
 
 /// Load only the acting policy (online network) of a checkpoint or policy file, checking that
@@ -148,7 +153,11 @@ pub fn load_policy(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let net = apply(expected.init(&mut rng, device), &file.online, path, "online")?;
-    Ok(Policy::new(&net, expected.clone()))
+    let mut policy = Policy::new(&net, expected.clone());
+    if let Some(cells) = file.header.team_deadband {
+        policy.set_team_deadband(cells).expect("checked when read");
+    }
+    Ok(policy)
 }
 
 /// Load the acting policy of a checkpoint or policy file with the network its header names,
@@ -264,6 +273,10 @@ pub(crate) fn read_file(path: &Path) -> Result<File, CheckpointError> {
         return Err(malformed(&format!("version {} (expected {VERSION})", header.version)));
     }
     header.net_config.check().map_err(|err| malformed(&format!("header: {err}")))?;
+    if let Some(cells) = header.team_deadband {
+        phalanx_env::check_team_deadband(cells)
+            .map_err(|err| malformed(&format!("header: team_deadband: {err}")))?;
+    }
     // Every weight takes 4 bytes of a record: a smaller one cannot hold the network, whose
     // allocation is then never tried (a damaged header cannot ask for more than the file).
     let weights = header.net_config.n_params().unwrap_or(usize::MAX);

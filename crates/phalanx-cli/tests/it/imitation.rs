@@ -168,9 +168,12 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let returns = metrics.lines().filter(|l| l.contains("charts/finetune_return")).count();
     assert_eq!(returns, 5, "one return per iteration");
 
-    // A student fine-tuned alone (no cloning, no expert data), from a policy file.
+    // A student fine-tuned alone (no cloning, no expert data), from a policy file, with
+    // another dead band of the team vector, which its policy file records.
     let alone = r#"{"init_from": "whole/round-0.bin", "updates": 0, "rounds": 0,
         "validation_maps": 1, "validation_max_side": 20,
+        "data": {"env": {"task": "meta", "place_vector": true, "team_vector": true,
+                         "team_deadband": 0.5}},
         "finetune": {"pools": [{"n_maps": 3, "size": 16}], "agents": [3], "iterations": 2,
         "instances": 1, "rollouts": 2}}"#;
     std::fs::write(d.join("alone.json"), alone).unwrap();
@@ -178,6 +181,9 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let (stdout, _) = check(&phalanx(d, &args), 0);
     assert!(stdout.contains("2 of 2"), "{stdout}");
     assert!(!d.join("alone/data-0.bin").exists(), "no expert data for a fine-tuning alone");
+    let header = String::from_utf8_lossy(&read("alone", "policy.bin")).into_owned();
+    assert!(header.contains(r#""team_deadband": 0.5"#), "the band is not in the policy file");
+    assert!(!String::from_utf8_lossy(&read("whole", "policy.bin")).contains("team_deadband"));
     // Settings a fine-tuning cannot follow are refused with the field.
     std::fs::write(d.join("bad.json"), r#"{"finetune": {"temperature": 0}}"#).unwrap();
     let bad = ["train", "imitation", "--config", "bad.json", "--out", "bad"];

@@ -42,6 +42,12 @@ class Policy:
         return self._net.vector_len
 
     @property
+    def team_deadband(self) -> float:
+        """The team vector's dead band it was trained with (1.5 unless its file says otherwise):
+        act in ``parallel_env(..., team_deadband=policy.team_deadband)``."""
+        return self._net.team_deadband
+
+    @property
     def escape(self) -> str | None:
         """The stall escape it acts with, ``"VISITS:PROB"`` (from the VISITS-th step on one
         cell off its goal an agent takes a random allowed action with probability PROB), or

@@ -77,3 +77,34 @@ fn files_of_the_first_layout_still_load() {
     let (b, _) = load_policy_any(&old, &Device::flex()).unwrap();
     assert_eq!(a.config(), b.config());
 }
+
+#[test]
+fn a_policy_acts_with_the_dead_band_it_was_trained_with() {
+    let dir = tempfile::tempdir().unwrap();
+    let (policy, checkpoint) = (dir.path().join("policy.bin"), dir.path().join("checkpoint"));
+    // The default band is not written: files of the default learner keep their bytes.
+    learner().save_policy(&policy).unwrap();
+    assert!(!String::from_utf8_lossy(&fs::read(&policy).unwrap()).contains("team_deadband"));
+    let loaded = load_policy(&policy, &small(), &Device::flex()).unwrap();
+    assert_eq!(loaded.team_deadband(), phalanx_env::obs::TEAM_DEADBAND);
+
+    let mut narrow = learner();
+    assert!(narrow.set_team_deadband(-1.0).is_err());
+    narrow.set_team_deadband(0.5).unwrap();
+    assert_eq!(narrow.policy().team_deadband(), 0.5);
+    narrow.save_policy(&policy).unwrap();
+    narrow.save(&checkpoint).unwrap();
+    assert_eq!(load_policy(&policy, &small(), &Device::flex()).unwrap().team_deadband(), 0.5);
+    let resumed = Learner::load(&checkpoint, &Device::flex().autodiff()).unwrap();
+    assert_eq!(resumed.policy().team_deadband(), 0.5);
+
+    // A band a policy cannot act with is refused, naming the file and the field.
+    let mut header = narrow.header();
+    header.team_deadband = Some(-2.0);
+    let header = serde_json::to_vec_pretty(&header).unwrap();
+    let online = narrow.online.clone().into_record().into_bytes().unwrap();
+    let bad = dir.path().join("band.bin");
+    fs::write(&bad, sections(POLICY_MAGIC, &[&header, &online])).unwrap();
+    let err = load_policy(&bad, &small(), &Device::flex()).unwrap_err().to_string();
+    assert!(err.contains("band.bin") && err.contains("team_deadband"), "{err}");
+}
