@@ -320,6 +320,7 @@ fn finetune(
     if learner.counters().updates == start {
         learner.restart_optimizer(finetune.lr);
     }
+    learner.set_team_deadband(run.team_deadband()).expect("checked with the settings");
     let round = config.rounds + 1;
     let step = |learner: &mut Learner| {
         let stats = run.iteration(learner, learner.counters().updates - start);

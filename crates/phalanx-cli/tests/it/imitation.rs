@@ -168,14 +168,12 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let returns = metrics.lines().filter(|l| l.contains("charts/finetune_return")).count();
     assert_eq!(returns, 5, "one return per iteration");
 
-    // A student fine-tuned alone (no cloning, no expert data), from a policy file, with
+    // A student fine-tuned alone (no cloning, no expert data), from a policy file, at
     // another dead band of the team vector, which its policy file records.
     let alone = r#"{"init_from": "whole/round-0.bin", "updates": 0, "rounds": 0,
         "validation_maps": 1, "validation_max_side": 20,
-        "data": {"env": {"task": "meta", "place_vector": true, "team_vector": true,
-                         "team_deadband": 0.5}},
         "finetune": {"pools": [{"n_maps": 3, "size": 16}], "agents": [3], "iterations": 2,
-        "instances": 1, "rollouts": 2}}"#;
+        "instances": 1, "rollouts": 2, "team_deadband": 0.5}}"#;
     std::fs::write(d.join("alone.json"), alone).unwrap();
     let args = ["train", "imitation", "--config", "alone.json", "--out", "alone"];
     let (stdout, _) = check(&phalanx(d, &args), 0);
@@ -183,7 +181,13 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     assert!(!d.join("alone/data-0.bin").exists(), "no expert data for a fine-tuning alone");
     let header = String::from_utf8_lossy(&read("alone", "policy.bin")).into_owned();
     assert!(header.contains(r#""team_deadband": 0.5"#), "the band is not in the policy file");
-    assert!(!String::from_utf8_lossy(&read("whole", "policy.bin")).contains("team_deadband"));
+    // The cloning at the data's (default) band, the fine-tuning at its own (0.75 by default).
+    let band = |file: &str| {
+        let text = String::from_utf8_lossy(&read("whole", file)).into_owned();
+        text.find("team_deadband").map(|at| text[at..at + 20].to_owned())
+    };
+    assert_eq!(band("round-0.bin"), None);
+    assert_eq!(band("policy.bin").as_deref(), Some(r#"team_deadband": 0.75"#));
     // Settings a fine-tuning cannot follow are refused with the field.
     std::fs::write(d.join("bad.json"), r#"{"finetune": {"temperature": 0}}"#).unwrap();
     let bad = ["train", "imitation", "--config", "bad.json", "--out", "bad"];

@@ -50,6 +50,12 @@ pub struct FinetuneConfig {
     pub min_spread: f64,
     /// Seed of the iterations' draws.
     pub seed: u64,
+    /// The team vector's dead band of the rollouts' environments, which the fine-tuned
+    /// student then acts with and its files record ([`crate::Learner::set_team_deadband`]);
+    /// `null`: the data's (`data.env.team_deadband`). The shipped student was cloned at the
+    /// default 1.5 and fine-tuned at 0.75 (docs/imitation.md, *The dead band in
+    /// fine-tuning*).
+    pub team_deadband: Option<f64>,
 }
 
 impl Default for FinetuneConfig {
@@ -72,6 +78,7 @@ impl Default for FinetuneConfig {
             lr: 1e-4,
             min_spread: 0.02,
             seed: 1,
+            team_deadband: Some(0.75),
         }
     }
 }
@@ -102,6 +109,10 @@ impl FinetuneConfig {
             return Err("finetune: wide_share, step_cost and fail_cost must be 0 or more, \
                         min_spread more than 0"
                 .into());
+        }
+        if let Some(cells) = self.team_deadband {
+            phalanx_env::check_team_deadband(cells)
+                .map_err(|err| format!("finetune.team_deadband: {err}"))?;
         }
         if self.wide_share > 1.0 {
             return Err(format!("finetune.wide_share: {} is not a share", self.wide_share));
@@ -139,12 +150,14 @@ pub struct Finetune {
 }
 
 impl Finetune {
-    /// A run of `config` whose student acts in environments of `env`.
+    /// A run of `config` whose student acts in environments of `env`, with the dead band of
+    /// `config` where it names one.
     ///
     /// # Errors
     /// If a pool cannot be made or the settings are out of range.
-    pub fn new(config: FinetuneConfig, env: EnvConfig) -> Result<Finetune, String> {
+    pub fn new(config: FinetuneConfig, mut env: EnvConfig) -> Result<Finetune, String> {
         config.check()?;
+        env.team_deadband = config.team_deadband.unwrap_or(env.team_deadband);
         let pools = config
             .pools
             .iter()
@@ -156,6 +169,11 @@ impl Finetune {
     /// The settings.
     pub fn config(&self) -> &FinetuneConfig {
         &self.config
+    }
+
+    /// The team vector's dead band of its rollouts.
+    pub fn team_deadband(&self) -> f64 {
+        self.env.team_deadband
     }
 
     /// Iteration `iteration`: its rollouts with the learner's policy, their advantages, and
@@ -329,6 +347,12 @@ mod tests {
         assert_ne!(first_scores(&before, &env, &instance), moved, "the update moved nothing");
         // The same iteration from the same network draws the same rollouts.
         assert_eq!(run.iteration(&mut self::learner(&config), 0), stats);
+        // Its rollouts play at its dead band, the data's when it names none.
+        assert_eq!(run.team_deadband(), 0.75);
+        let data_band = FinetuneConfig { team_deadband: None, ..settings.clone() };
+        assert_eq!(Finetune::new(data_band, env.clone()).unwrap().team_deadband(), 1.5);
+        let bad = FinetuneConfig { team_deadband: Some(-1.0), ..settings.clone() };
+        assert!(Finetune::new(bad, env.clone()).is_err_and(|e| e.contains("team_deadband")));
         let bad = FinetuneConfig { rollouts: 1, ..settings };
         assert!(Finetune::new(bad, env).is_err_and(|err| err.contains("rollouts")));
     }
