@@ -324,9 +324,10 @@ def parallel_env(**kwargs: Any) -> ParallelEnv:
     place in the goal layout placed on the agent in front), ``team_vector=False`` (with
     ``place_vector``: each observation gains ``"team"``, for the agent in front the vector
     towards its place in the goal layout placed on the team, zeros for the others),
-    ``team_deadband=1.5`` (the team vector is zeros while shorter than this many cells: the
-    band the student was trained with; narrower, its teams keep their shape better and take
-    longer, docs/imitation.md); the planners' student ``load_policy("imitation")`` reads
+    ``team_deadband=1.5`` (the team vector is zeros while shorter than this many cells; a
+    student acts as trained at its own band, ``load_policy("imitation").team_deadband``, 0.75
+    for the shipped one; narrower, its teams keep their shape better and take longer,
+    docs/imitation.md); the planners' student ``load_policy("imitation")`` reads
     both vectors."""
     return ParallelEnv(**kwargs)
 
