@@ -144,6 +144,15 @@ impl Team {
         }
     }
 
+    /// The team vector's dead band its policy acts with (the flat policy's own, which a
+    /// student's file records; the default for the hierarchy, which reads no team vector).
+    pub(crate) fn team_deadband(&self) -> f64 {
+        match self {
+            Team::Flat(policy) => policy.team_deadband(),
+            Team::Hierarchy(_) => phalanx_env::obs::TEAM_DEADBAND,
+        }
+    }
+
     /// Runs agent `id` over `transport` until the episode ends (see
     /// [`phalanx_runtime::run_agent`]).
     pub(crate) fn run_agent(
@@ -248,14 +257,14 @@ pub(crate) fn policy_for(weights: Option<&Path>, name: &str, n: usize) -> anyhow
 }
 
 /// The world of `instance` for a team of `policy` of field of view `fov` (the student's
-/// observations with `vectors`), with the step limit of
-/// docs/spec.md §4 (three times the map side).
+/// observations with `vectors`, its team vector with the dead band `team_deadband` it acts
+/// with), with the step limit of docs/spec.md §4 (three times the map side).
 pub(crate) fn world_for(
     named: &NamedInstance,
     path: &Path,
     policy: TeamPolicy,
     fov: u32,
-    vectors: Vectors,
+    (vectors, team_deadband): (Vectors, f64),
 ) -> anyhow::Result<World> {
     let instance = &named.instance;
     let step_limit = Some(3 * instance.grid().side());
@@ -263,7 +272,8 @@ pub(crate) fn world_for(
     match policy {
         TeamPolicy::Pathfinding => World::new(instance, config, 0),
         TeamPolicy::Imitation => {
-            World::new(instance, vectors.apply(EnvConfig { task: Task::Meta, ..config }), 0)
+            let meta = EnvConfig { task: Task::Meta, team_deadband, ..config };
+            World::new(instance, vectors.apply(meta), 0)
         }
         TeamPolicy::Hrl => World::hierarchy(instance, config, 0),
     }
@@ -334,7 +344,8 @@ pub(crate) fn run(cmd: RunCmd) -> anyhow::Result<ExitCode> {
     if cmd.processes {
         return processes(&cmd, n, &team);
     }
-    let mut world = world_for(&named, &cmd.instance, cmd.team.policy, team.fov(), team.vectors())?;
+    let reads = (team.vectors(), team.team_deadband());
+    let mut world = world_for(&named, &cmd.instance, cmd.team.policy, team.fov(), reads)?;
     let (mut world_end, agent_ends) = inproc::bus(n as u16);
     let step_timeout = Duration::from_millis(cmd.step_timeout);
     let started = Instant::now();
@@ -380,6 +391,7 @@ fn processes(cmd: &RunCmd, n: usize, team: &Team) -> anyhow::Result<ExitCode> {
     world.args(["--policy", cmd.team.policy.name()]);
     if cmd.team.policy == TeamPolicy::Imitation {
         world.args(["--vectors", &team.vectors().name()]);
+        world.args(["--team-deadband", &team.team_deadband().to_string()]);
     }
     if let Some(agents) = cmd.agents {
         world.args(["--agents", &agents.to_string()]);

@@ -42,6 +42,11 @@ pub(crate) struct WorldCmd {
     /// student's network reads them (`phalanx run` reads it off the network; docs/imitation.md).
     #[arg(long, value_enum, default_value = "team")]
     vectors: Vectors,
+    /// With `--policy imitation`: the team vector's dead band in cells, the one the
+    /// student acts with (`phalanx run` reads it off the policy file; the shipped student's
+    /// 0.75; docs/imitation.md).
+    #[arg(long, default_value_t = phalanx_env::obs::TEAM_DEADBAND, value_name = "CELLS", value_parser = util::team_deadband)]
+    team_deadband: f64,
     /// How long to wait for an action before the first agent not in waits this step,
     /// milliseconds.
     #[arg(long, default_value_t = 2000, value_name = "MS")]
@@ -68,7 +73,13 @@ pub(crate) struct WorldCmd {
 pub(crate) fn run(cmd: WorldCmd) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(cmd.step_timeout > 0, "--step-timeout must be positive");
     let named = util::read_instance(&cmd.instance, cmd.agents)?;
-    let mut world = run::world_for(&named, &cmd.instance, cmd.policy, cmd.fov, cmd.vectors)?;
+    let mut world = run::world_for(
+        &named,
+        &cmd.instance,
+        cmd.policy,
+        cmd.fov,
+        (cmd.vectors, cmd.team_deadband),
+    )?;
     let n = u16::try_from(named.instance.n_agents()).context("too many agents")?;
     let mut endpoints = Endpoints::world(&cmd.listen);
     endpoints.prefix = cmd.prefix.clone();
