@@ -11,6 +11,11 @@ use anyhow::Context as _;
 pub(crate) struct Args {
     #[command(flatten)]
     map: crate::util::MapArgs,
+    /// The map's kind: the paper's random walls with its start and goal regions, or a maze of
+    /// 2-cell corridors or 7 × 7 rooms joined by one-cell doors, on which the formation and its
+    /// translated goals are placed as on real maps (`--density` unused).
+    #[arg(long, value_enum, default_value_t = Kind::Random)]
+    kind: Kind,
     /// Output file: .yaml/.yml (libMultiRobotPlanning) or .scen (plus .map beside it).
     #[arg(short, long)]
     output: PathBuf,
@@ -20,7 +25,10 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     // Check the extension before spending time on generation.
     phalanx_io::InstanceFormat::of(&args.output)?;
     let config = args.map.config();
-    let instance = phalanx_gen::generate(&config).context("generating the instance")?;
+    let instance = match args.kind {
+        Kind::Random => phalanx_gen::generate(&config).context("generating the instance")?,
+        Kind::Maze | Kind::Rooms => placed(args.kind, &config)?,
+    };
     crate::util::written(phalanx_io::write_instance(&args.output, &instance), &args.output)?;
     let grid = instance.grid();
     crate::util::print(&format!(
@@ -33,4 +41,36 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
         config.seed
     ))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The kinds of map `phalanx gen` draws (`phalanx_env::MapKind`'s, for the command line).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Kind {
+    /// The paper's (docs/spec.md §2).
+    Random,
+    /// A maze (`phalanx_gen::maze`).
+    Maze,
+    /// Rooms (`phalanx_gen::rooms`).
+    Rooms,
+}
+
+/// A maze or room map of `config`'s side from its seed, with a formation of its agents and
+/// their translated goals placed on it (`phalanx_gen::formation_on_map`, from the same seed).
+fn placed(kind: Kind, config: &phalanx_gen::GenConfig) -> anyhow::Result<phalanx_core::Instance> {
+    use rand::SeedableRng as _;
+    let (size, seed) = (config.size, config.seed);
+    let grid = if kind == Kind::Maze {
+        phalanx_gen::maze(size, phalanx_gen::MAZE_CORRIDOR, seed)
+    } else {
+        phalanx_gen::rooms(size, phalanx_gen::ROOM_SIDE, seed)
+    }
+    .context("generating the map")?;
+    let r = phalanx_gen::region_side(size);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    phalanx_gen::formation_on_map(&grid, config.n_agents, r, &mut rng).with_context(|| {
+        format!(
+            "no formation of {} agents fits the {size}x{size} map (seed {seed})",
+            config.n_agents
+        )
+    })
 }

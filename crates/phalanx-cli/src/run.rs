@@ -258,7 +258,7 @@ pub(crate) fn policy_for(weights: Option<&Path>, name: &str, n: usize) -> anyhow
 
 /// The world of `instance` for a team of `policy` of field of view `fov` (the student's
 /// observations with `vectors`, its team vector with the dead band `team_deadband` it acts
-/// with), with the step limit of docs/spec.md §4 (three times the map side).
+/// with), with the instance's step limit (docs/spec.md §3, `Instance::step_limit`).
 pub(crate) fn world_for(
     named: &NamedInstance,
     path: &Path,
@@ -267,8 +267,7 @@ pub(crate) fn world_for(
     (vectors, team_deadband): (Vectors, f64),
 ) -> anyhow::Result<World> {
     let instance = &named.instance;
-    let step_limit = Some(3 * instance.grid().side());
-    let config = EnvConfig { fov, step_limit, ..EnvConfig::default() };
+    let config = EnvConfig { fov, ..EnvConfig::default() };
     match policy {
         TeamPolicy::Pathfinding => World::new(instance, config, 0),
         TeamPolicy::Imitation => {

@@ -3,7 +3,7 @@
 
 use thiserror::Error;
 
-use crate::{Cell, Grid};
+use crate::{Cell, DistanceMap, Grid};
 
 /// A validated problem: agent `i` starts at `starts[i]` and must reach `goals[i]`.
 ///
@@ -179,10 +179,42 @@ impl Instance {
         self.goals.iter().map(|c| c.offset(-min_x, -min_y)).collect()
     }
 
+    /// The longest of the agents' shortest routes from start to goal (BFS over the free
+    /// cells, one search per agent).
+    pub fn longest_route(&self) -> u32 {
+        self.starts
+            .iter()
+            .zip(&self.goals)
+            .map(|(&start, &goal)| DistanceMap::bfs(&self.grid, goal).raw(start))
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// The step limit of an episode on this instance (docs/spec.md §3): [`step_limit`] of
+    /// the map side and [`Instance::longest_route`].
+    pub fn step_limit(&self) -> u32 {
+        step_limit(self.grid.side(), self.longest_route())
+    }
+
+    /// Whether a plan whose makespan is `makespan` ends within [`Instance::step_limit`]; the
+    /// routes are searched only past three times the side.
+    pub fn within_step_limit(&self, makespan: usize) -> bool {
+        makespan <= 3 * self.grid.side() as usize || makespan <= self.step_limit() as usize
+    }
+
     /// Takes the instance apart.
     pub fn into_parts(self) -> (Grid, Vec<Cell>, Vec<Cell>) {
         (self.grid, self.starts, self.goals)
     }
+}
+
+/// The step limit of an episode (docs/spec.md §3): three times the map side (the paper's
+/// episode length), or half again the longest of the agents' shortest routes where that is
+/// longer, so that no instance is cut short of its own shortest plan (a maze's routes wind
+/// over several sides; on the paper's maps, whose routes are at most about two sides long,
+/// the limit is `3 × side`).
+pub fn step_limit(side: u32, longest_route: u32) -> u32 {
+    side.saturating_mul(3).max(longest_route.saturating_mul(3).div_ceil(2))
 }
 
 /// Labels the connected free regions that contain a goal (one flood fill per unlabelled
@@ -226,11 +258,30 @@ fn components(grid: &Grid, goals: &[Cell]) -> (Vec<u32>, usize) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn c(x: i32, y: i32) -> Cell {
         Cell::new(x, y)
+    }
+
+    /// A 5 × 5 snake: rows 1 and 3 walled but for one end, so the route from the top-left
+    /// corner to the bottom-left one is 12 steps, more than two sides.
+    pub(crate) fn snake() -> Instance {
+        let grid = Grid::from_fn(5, 5, |c| c.y == 1 && c.x < 4 || c.y == 3 && c.x > 0);
+        Instance::new(grid, vec![c(0, 0)], vec![c(0, 4)]).unwrap()
+    }
+
+    #[test]
+    fn the_step_limit_is_three_sides_or_half_again_the_longest_route() {
+        assert_eq!((step_limit(20, 0), step_limit(20, 40), step_limit(20, 41)), (60, 60, 62));
+        assert_eq!(step_limit(u32::MAX, u32::MAX), u32::MAX);
+        let maze = snake();
+        assert_eq!((maze.longest_route(), maze.step_limit()), (12, 18));
+        assert!(maze.within_step_limit(18) && !maze.within_step_limit(19));
+        let open = Instance::new(Grid::new(5, 5), vec![c(0, 0), c(1, 0)], vec![c(3, 4), c(4, 4)]);
+        let open = open.unwrap();
+        assert_eq!((open.longest_route(), open.step_limit()), (7, 15));
     }
 
     #[test]

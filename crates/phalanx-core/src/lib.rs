@@ -32,7 +32,7 @@ pub use cell::{AgentId, Cell, CellId};
 pub use distance::{DistanceMap, octile_distance};
 pub use formation::{formation_fit, formation_loss, formation_loss_squared};
 pub use grid::Grid;
-pub use instance::{Instance, InstanceError};
+pub use instance::{Instance, InstanceError, step_limit};
 pub use metrics::{PlanMetrics, STALL_WINDOW, Stall};
 pub use plan::Plan;
 pub use validate::{Violation, ViolationKind, validate};

@@ -9,7 +9,8 @@ use crate::{Cell, Instance, Plan, formation_loss};
 /// false.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanMetrics {
-    /// Every agent stands on its goal at some step.
+    /// Every agent stands on its goal at some step within the instance's step limit
+    /// ([`Instance::step_limit`]).
     pub success: bool,
     /// First step at which all agents are on their goals (the plan's horizon on failure).
     pub makespan: usize,
@@ -56,7 +57,7 @@ impl PlanMetrics {
         );
         let total: f64 = per_step.iter().skip(1).sum();
         PlanMetrics {
-            success: reached.is_some(),
+            success: reached.is_some_and(|t| instance.within_step_limit(t)),
             makespan,
             sum_of_costs,
             formation_loss: total / f64::from(instance.grid().side()),
@@ -184,5 +185,26 @@ mod tests {
         let short = Plan::from_paths(&[vec![c(0, 0), c(1, 0)]]);
         let m = PlanMetrics::of(&inst, &short);
         assert_eq!((m.success, m.makespan, m.sum_of_costs), (false, 1, 2));
+    }
+
+    #[test]
+    fn a_plan_past_the_step_limit_is_no_success() {
+        // The snake's route is 12 steps, its step limit 18: the route with 6 waits at the
+        // start arrives within it, with 7 waits one step past it.
+        let maze = crate::instance::tests::snake();
+        let route: Vec<Cell> = (0..5)
+            .map(|x| c(x, 0))
+            .chain([c(4, 1)])
+            .chain((0..5).rev().map(|x| c(x, 2)))
+            .chain([c(0, 3), c(0, 4)])
+            .collect();
+        let waiting = |w: usize| {
+            let mut path = vec![c(0, 0); w];
+            path.extend_from_slice(&route);
+            PlanMetrics::of(&maze, &Plan::from_paths(&[path]))
+        };
+        let (on_time, late) = (waiting(6), waiting(7));
+        assert_eq!((on_time.success, on_time.makespan), (true, 18));
+        assert_eq!((late.success, late.makespan), (false, 19));
     }
 }

@@ -78,7 +78,9 @@ pub struct EnvConfig {
     /// The meta task's formation weight `w_f` (docs/spec.md §6, Eq. 14); unused by the other tasks.
     /// Default 1.
     pub formation_weight: f64,
-    /// Steps after which an episode is truncated; `None` means `3 × map side` (the paper).
+    /// Steps after which an episode is truncated; `None` means the instance's own
+    /// ([`phalanx_core::step_limit`]: `3 × map side`, the paper's, unless an agent's shortest
+    /// route is longer than two sides).
     pub step_limit: Option<u32>,
     /// The meta task's idle cost `c`: each step, an agent off its goal that did not get
     /// closer to it loses `c`; unused by the other tasks. Default 0 (Table I). Not written

@@ -7,7 +7,7 @@
 //! each agent's BFS distance map lives in the same padded layout; an occupancy grid holds the
 //! agent index per cell and is updated incrementally.
 
-use phalanx_core::{Action, Cell, Grid, Instance, formation_loss};
+use phalanx_core::{Action, Cell, Grid, Instance, formation_loss, step_limit};
 use phalanx_gen::GenConfig;
 use rayon::prelude::*;
 
@@ -361,7 +361,6 @@ impl Env {
         self.height = grid.height();
         self.pw = pw;
         self.n_padded = n_padded;
-        self.step_limit = self.config.step_limit.unwrap_or(3 * grid.side());
         // The obstacles and distance maps depend on the map and the goals only: an episode on
         // the same ones as the last (the test-time rollouts of one instance) keeps them.
         let same_map = self.searched_map.as_ref() == Some(grid) && self.goals == instance.goals();
@@ -409,6 +408,9 @@ impl Env {
         self.own_dist.extend(
             self.pos_idx.iter().enumerate().map(|(i, &p)| self.dist.at(i * n_padded + p as usize)),
         );
+        let longest_route = self.own_dist.iter().copied().max().unwrap_or(0);
+        self.step_limit =
+            self.config.step_limit.unwrap_or_else(|| step_limit(grid.side(), longest_route));
         self.target.clear();
         self.target.resize(n, 0);
         self.stack.clear();
@@ -535,7 +537,8 @@ impl Env {
         self.t
     }
 
-    /// The step limit of this episode (`3 × map side` unless configured).
+    /// The step limit of this episode ([`phalanx_core::step_limit`] of the map side and the
+    /// agents' longest shortest route, unless configured).
     #[inline]
     pub fn step_limit(&self) -> u32 {
         self.step_limit

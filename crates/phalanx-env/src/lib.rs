@@ -46,5 +46,5 @@ pub use formation::{MAX_PLACEMENT_ATTEMPTS, formation_instance};
 pub use hier::{Choice, HierEnv, MetaInputs, clip_claimed};
 pub use marl::{MarlEnv, ObsBuffers, ObsShape, StepOut, step_lockstep};
 pub use phalanx_gen::GenConfig;
-pub use pool::{EvalMaps, PoolConfig, TrainPool, WIDE_SIDE, eval_seed, train_seed};
+pub use pool::{EvalMaps, MapKind, PoolConfig, TrainPool, WIDE_SIDE, eval_seed, train_seed};
 pub use task::{PoolEnv, Shaping, TaskEnv};

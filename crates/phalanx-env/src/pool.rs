@@ -72,12 +72,47 @@ pub struct PoolConfig {
     /// episode's seed of the training stream). Default none. Not written when empty.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub maps: Vec<PathBuf>,
+    /// What the generated maps look like: the paper's `random` walls (the default, not
+    /// written), or `maze` and `rooms` maps of side `size` (`density` unused), on which
+    /// every episode places its formation as on the user's maps. Unused with `maps`.
+    #[serde(skip_serializing_if = "MapKind::is_random")]
+    pub kind: MapKind,
+}
+
+/// The kind of a pool's generated maps ([`PoolConfig::kind`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MapKind {
+    /// The paper's (docs/spec.md §2): straight random walls at the pool's density around a
+    /// start and a goal region kept free, which the teams start from and go to.
+    #[default]
+    Random,
+    /// Mazes of [`phalanx_gen::MAZE_CORRIDOR`]-cell corridors ([`phalanx_gen::maze`]).
+    Maze,
+    /// Rooms of [`phalanx_gen::ROOM_SIDE`] cells a side joined by one-cell doors
+    /// ([`phalanx_gen::rooms`]).
+    Rooms,
+}
+
+impl MapKind {
+    /// Whether this is the paper's kind (the default).
+    pub fn is_random(&self) -> bool {
+        *self == MapKind::Random
+    }
 }
 
 impl Default for PoolConfig {
     fn default() -> PoolConfig {
         let GenConfig { size, density, fov, .. } = GenConfig::default();
-        PoolConfig { n_maps: 100, size, density, fov, seed: 0, maps: Vec::new() }
+        PoolConfig {
+            n_maps: 100,
+            size,
+            density,
+            fov,
+            seed: 0,
+            maps: Vec::new(),
+            kind: MapKind::Random,
+        }
     }
 }
 
@@ -102,13 +137,14 @@ impl PoolConfig {
 pub struct TrainPool {
     config: PoolConfig,
     maps: Vec<Grid>,
-    /// The maps are the user's (`PoolConfig::maps`): formations are placed anywhere on them.
+    /// The maps are the user's (`PoolConfig::maps`) or of another kind than the paper's:
+    /// formations are placed anywhere on them.
     own: bool,
 }
 
 impl TrainPool {
-    /// Generates the pool (map `i` is the generator's map for [`train_seed`]`(seed, i)`), or
-    /// reads the user's maps.
+    /// Generates the pool (map `i` is the generator's map of its kind for
+    /// [`train_seed`]`(seed, i)`), or reads the user's maps.
     ///
     /// # Errors
     /// If the generator refuses the settings, or a map file cannot be read, names no map,
@@ -118,13 +154,24 @@ impl TrainPool {
             let maps = own_maps(&config.maps)?;
             return Ok(TrainPool { config: config.clone(), maps, own: true });
         }
-        let maps = (0..config.n_maps as u64)
-            .map(|i| phalanx_gen::generate(&config.map(i)).map(|inst| inst.into_parts().0))
-            .collect::<Result<Vec<Grid>, _>>()?;
-        Ok(TrainPool { config: config.clone(), maps, own: false })
+        let seeds = (0..config.n_maps as u64).map(|i| train_seed(config.seed, i));
+        let maps = match config.kind {
+            MapKind::Random => (0..config.n_maps as u64)
+                .map(|i| phalanx_gen::generate(&config.map(i)).map(|inst| inst.into_parts().0))
+                .collect::<Result<Vec<Grid>, _>>()?,
+            MapKind::Maze => seeds
+                .map(|seed| phalanx_gen::maze(config.size, phalanx_gen::MAZE_CORRIDOR, seed))
+                .collect::<Result<_, _>>()?,
+            MapKind::Rooms => seeds
+                .map(|seed| phalanx_gen::rooms(config.size, phalanx_gen::ROOM_SIDE, seed))
+                .collect::<Result<_, _>>()?,
+        };
+        let own = !config.kind.is_random();
+        Ok(TrainPool { config: config.clone(), maps, own })
     }
 
-    /// Whether the maps are the user's.
+    /// Whether formations are placed anywhere on the maps (the user's, or a `maze` or
+    /// `rooms` pool's).
     pub fn is_own(&self) -> bool {
         self.own
     }

@@ -80,6 +80,15 @@ pub enum GenError {
         /// Largest allowed count.
         max: usize,
     },
+    /// A map of another kind than the paper's does not fit the side
+    /// ([`maze`], [`rooms`]).
+    #[error("a {side}x{side} map holds no {what}")]
+    Kind {
+        /// The map side.
+        side: u32,
+        /// What it cannot hold (`"maze of 2-cell corridors"`, …).
+        what: String,
+    },
     /// No map with the goals reachable came out within the attempt limit.
     #[error("no map with every goal reachable after {attempts} attempts (density {density})")]
     Unreachable {
@@ -273,6 +282,10 @@ pub fn formation_on_map(
     }
     None
 }
+
+mod kinds;
+
+pub use kinds::{MAZE_CORRIDOR, ROOM_SIDE, maze, rooms};
 
 #[cfg(test)]
 mod tests;

@@ -130,3 +130,55 @@ fn formations_on_a_given_map_are_translated_reachable_and_far() {
     let tiny = Grid::from_fn(8, 8, |c| c != Cell::new(0, 0));
     assert!(formation_on_map(&tiny, 2, 5, &mut rng).is_none());
 }
+
+/// Every free cell of `grid` reaches every other.
+fn connected(grid: &Grid) -> bool {
+    let free: Vec<Cell> = grid.free_cells().collect();
+    let dist = phalanx_core::DistanceMap::bfs(grid, free[0]);
+    free.iter().all(|&c| dist.get(c).is_some())
+}
+
+#[test]
+fn mazes_are_connected_corridors_of_their_width() {
+    for (side, corridor, seed) in [(32, 2, 0), (32, 2, 1), (33, 1, 2), (64, 3, 3)] {
+        let grid = maze(side, corridor, seed).unwrap();
+        assert_eq!(grid, maze(side, corridor, seed).unwrap());
+        assert!(connected(&grid), "{side} {corridor} {seed}");
+        // No free square wider than a corridor: the walls stand on the lattice.
+        let w = corridor as i32 + 1;
+        let free_square = |x: i32, y: i32| {
+            (0..w).all(|dy| (0..w).all(|dx| !grid.is_blocked(Cell::new(x + dx, y + dy))))
+        };
+        let s = side as i32 - w;
+        assert!(!(0..=s).any(|y| (0..=s).any(|x| free_square(x, y))));
+        // Long corridors: the farthest cell from the corner is many sides away.
+        let dist = phalanx_core::DistanceMap::bfs(&grid, Cell::new(1, 1));
+        let far = grid.free_cells().filter_map(|c| dist.get(c)).max().unwrap();
+        assert!(far > 2 * side, "{far}");
+    }
+    assert_ne!(maze(32, 2, 0), maze(32, 2, 1));
+    assert_eq!(maze(4097, 2, 0), Err(GenError::Size(4097)));
+    assert!(matches!(maze(8, 3, 0), Err(GenError::Kind { side: 8, .. })));
+    assert!(matches!(maze(32, 0, 0), Err(GenError::Kind { .. })));
+}
+
+#[test]
+fn rooms_are_connected_by_one_cell_doors() {
+    for (side, room, seed) in [(64, 7, 0), (64, 7, 1), (20, 7, 2), (65, 4, 3)] {
+        let grid = rooms(side, room, seed).unwrap();
+        assert_eq!(grid, rooms(side, room, seed).unwrap());
+        assert!(connected(&grid), "{side} {room} {seed}");
+        // The walls are the lattice lines but for their doors; each room is free inside.
+        let p = room as i32 + 1;
+        for c in grid.free_cells() {
+            if c.x % p == 0 && c.y % p == 0 {
+                panic!("a door at a wall crossing {c}");
+            }
+        }
+        assert!(grid.free_cells().filter(|c| c.x % p == 0 || c.y % p == 0).count() > 0);
+        assert!(!grid.is_blocked(Cell::new(1, 1)));
+    }
+    assert_ne!(rooms(64, 7, 0), rooms(64, 7, 1));
+    assert!(matches!(rooms(9, 7, 0), Err(GenError::Kind { side: 9, .. })));
+    assert!(rooms(10, 7, 0).is_ok());
+}

@@ -82,6 +82,36 @@ fn gen_info_validate_round_trip() {
     assert!(d.join("inst.map").is_file());
 }
 
+#[test]
+fn gen_draws_mazes_and_rooms_and_places_the_formation_on_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (kind, size, file) in [("maze", "32", "maze.scen"), ("rooms", "64", "rooms.yaml")] {
+        let args =
+            ["gen", "--kind", kind, "--size", size, "--agents", "4", "--seed", "5", "-o", file];
+        check(&phalanx(d, &args), 0);
+        let named = phalanx_io::read_instance(&d.join(file), None).unwrap();
+        let inst = &named.instance;
+        let side: u32 = size.parse().unwrap();
+        let grid = match kind {
+            "maze" => phalanx_gen::maze(side, phalanx_gen::MAZE_CORRIDOR, 5),
+            _ => phalanx_gen::rooms(side, phalanx_gen::ROOM_SIDE, 5),
+        };
+        assert_eq!(inst.grid(), &grid.unwrap());
+        assert_eq!(inst.n_agents(), 4);
+        // The goals are the formation translated.
+        assert_eq!(phalanx_core::formation_loss(inst.starts(), inst.goals()), 0.0);
+        // The same seed, the same file.
+        let again = format!("again-{file}");
+        check(&phalanx(d, &[&args[..10], &[again.as_str()]].concat()), 0);
+        assert_eq!(phalanx_io::read_instance(&d.join(&again), None).unwrap().instance, *inst);
+    }
+    let (_, err) =
+        check(&phalanx(d, &["gen", "--kind", "rooms", "--size", "9", "-o", "x.yaml"]), 2);
+    assert!(err.contains("9x9 map holds no two rooms"), "{err}");
+    assert!(!d.join("x.yaml").exists());
+}
+
 const INSTANCE: &str = "\
 map:
   dimensions: [4, 3]

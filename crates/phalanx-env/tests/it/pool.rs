@@ -2,9 +2,10 @@
 
 use phalanx_core::formation_loss;
 use phalanx_env::{
-    Env, EnvConfig, EvalMaps, GenConfig, PoolConfig, Task, TrainPool, WIDE_SIDE, eval_seed,
-    formation_instance, train_seed,
+    Env, EnvConfig, EvalMaps, GenConfig, MapKind, PoolConfig, Task, TrainPool, WIDE_SIDE,
+    eval_seed, formation_instance, train_seed,
 };
+use phalanx_gen::{MAZE_CORRIDOR, ROOM_SIDE};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -145,6 +146,37 @@ fn a_pool_of_ones_own_maps_places_formations_on_them() {
     // A directory holds its .map files.
     let dir = PoolConfig { maps: vec![movingai("")], ..PoolConfig::default() };
     assert_eq!(TrainPool::new(&dir).unwrap().len(), 9);
+}
+
+#[test]
+fn maze_and_rooms_pools_place_formations_anywhere_on_their_maps() {
+    for (kind, size) in [(MapKind::Maze, 32), (MapKind::Rooms, 64)] {
+        let config = PoolConfig { n_maps: 5, size, kind, ..PoolConfig::default() };
+        let pool = TrainPool::new(&config).unwrap();
+        assert!(pool.is_own() && pool.len() == 5);
+        let seeds = (0..5).map(|i| train_seed(0, i));
+        let maps: Vec<_> = match kind {
+            MapKind::Maze => seeds.map(|s| phalanx_gen::maze(size, MAZE_CORRIDOR, s)).collect(),
+            _ => seeds.map(|s| phalanx_gen::rooms(size, ROOM_SIDE, s)).collect(),
+        };
+        assert!((0..5).all(|i| Ok(pool.map(i)) == maps[i].as_ref()));
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        for n in 3..=8 {
+            let inst = pool.sample_episode(n, 0.5, &mut rng);
+            assert_eq!(formation_loss(inst.starts(), inst.goals()), 0.0);
+        }
+        // The kind is written only when it is not the paper's.
+        let json = serde_json::to_string(&config).unwrap();
+        assert!(
+            json.contains(&format!("\"kind\":\"{}\"", ["maze", "rooms"][(size / 64) as usize]))
+        );
+        assert_eq!(serde_json::from_str::<PoolConfig>(&json).unwrap(), config);
+    }
+    assert!(!serde_json::to_string(&PoolConfig::default()).unwrap().contains("kind"));
+    // A side too small for rooms is refused with the generator's reason.
+    let tiny = PoolConfig { size: 9, kind: MapKind::Rooms, ..PoolConfig::default() };
+    let err = TrainPool::new(&tiny).unwrap_err().to_string();
+    assert!(err.contains("9x9 map holds no two rooms"), "{err}");
 }
 
 #[test]

@@ -103,6 +103,21 @@ fn truncated_at_three_times_the_side() {
 }
 
 #[test]
+fn a_route_longer_than_two_sides_gets_half_again_its_length() {
+    // A 5 × 5 snake: the route from (0, 0) to (0, 4) is 12 steps; 3 × side would be 15.
+    let walls: Vec<_> = (0..4).map(|x| c(x, 1)).chain((1..5).map(|x| c(x, 3))).collect();
+    let inst = instance(5, 5, &walls, &[c(0, 0)], &[c(0, 4)]);
+    let mut env = env(Task::PathFinding);
+    env.reset(&inst).unwrap();
+    assert_eq!((env.step_limit(), inst.step_limit()), (18, 18));
+    // A configured limit stays the limit.
+    let config = EnvConfig { step_limit: Some(7), ..EnvConfig::default() };
+    let mut env = Env::new(config).unwrap();
+    env.reset(&inst).unwrap();
+    assert_eq!(env.step_limit(), 7);
+}
+
+#[test]
 fn masks_follow_the_clipping() {
     // . . .
     // . # .     agent at (0,0), goal (2,2)
