@@ -117,7 +117,7 @@ pub(crate) struct ActingArgs {
     #[arg(long, value_name = "VISITS:PROB|off", value_parser = escape)]
     escape: Option<EscapeArg>,
     /// The imitation student: the team vector's dead band in cells, 0 or more (default: the
-    /// band it was trained with, from its policy file; the shipped student's 0.75): narrower,
+    /// band it was trained with, from its policy file; the shipped student's 0.6): narrower,
     /// the agent in front waits for smaller lags, and the team keeps its shape better and
     /// takes longer (docs/imitation.md). No effect on the other policies.
     #[arg(long, value_name = "CELLS", value_parser = crate::util::team_deadband)]

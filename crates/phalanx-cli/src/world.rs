@@ -44,7 +44,7 @@ pub(crate) struct WorldCmd {
     vectors: Vectors,
     /// With `--policy imitation`: the team vector's dead band in cells, the one the
     /// student acts with (`phalanx run` reads it off the policy file; the shipped student's
-    /// 0.75; docs/imitation.md).
+    /// 0.6; docs/imitation.md).
     #[arg(long, default_value_t = phalanx_env::obs::TEAM_DEADBAND, value_name = "CELLS", value_parser = util::team_deadband)]
     team_deadband: f64,
     /// How long to wait for an action before the first agent not in waits this step,

@@ -354,8 +354,8 @@ mod tests {
             _ => panic!("{spec}: a learned policy"),
         };
         let student = Some(phalanx_rl::Escape::STUDENT);
-        // The shipped student was fine-tuned at 0.75, which its policy file records.
-        assert_eq!(acting("imitation"), (student, 0.75));
+        // The shipped student was fine-tuned at 0.6, which its policy file records.
+        assert_eq!(acting("imitation"), (student, 0.6));
         assert_eq!(acting("imitation:band=1.5"), (student, 1.5));
         assert_eq!(acting("imitation:off+band=0"), (None, 0.0));
         let escape = Some(phalanx_rl::Escape { visits: 3, prob: 0.5 });

@@ -40,7 +40,8 @@ pub struct FinetuneConfig {
     pub rollouts: usize,
     /// The softmax temperature of the rollouts' actions.
     pub temperature: f32,
-    /// Cost of a step against a unit of `L_f` for one step.
+    /// Cost of a step against a unit of `L_f` for one step (default 2, the shipped
+    /// student's: docs/imitation.md, *A dearer step at a narrower band*).
     pub step_cost: f64,
     /// Cost of not reaching the goals, in units of the return.
     pub fail_cost: f64,
@@ -53,8 +54,8 @@ pub struct FinetuneConfig {
     /// The team vector's dead band of the rollouts' environments, which the fine-tuned
     /// student then acts with and its files record ([`crate::Learner::set_team_deadband`]);
     /// `null`: the data's (`data.env.team_deadband`). The shipped student was cloned at the
-    /// default 1.5 and fine-tuned at 0.75 (docs/imitation.md, *The dead band in
-    /// fine-tuning*).
+    /// default 1.5 and fine-tuned at 0.6 with `step_cost` 2 (docs/imitation.md, *The dead
+    /// band in fine-tuning*, *A dearer step at a narrower band*).
     pub team_deadband: Option<f64>,
 }
 
@@ -73,12 +74,12 @@ impl Default for FinetuneConfig {
             instances: 4,
             rollouts: 8,
             temperature: 0.5,
-            step_cost: 1.0,
+            step_cost: 2.0,
             fail_cost: 1.0,
             lr: 1e-4,
             min_spread: 0.02,
             seed: 1,
-            team_deadband: Some(0.75),
+            team_deadband: Some(0.6),
         }
     }
 }
@@ -348,7 +349,7 @@ mod tests {
         // The same iteration from the same network draws the same rollouts.
         assert_eq!(run.iteration(&mut self::learner(&config), 0), stats);
         // Its rollouts play at its dead band, the data's when it names none.
-        assert_eq!(run.team_deadband(), 0.75);
+        assert_eq!(run.team_deadband(), 0.6);
         let data_band = FinetuneConfig { team_deadband: None, ..settings.clone() };
         assert_eq!(Finetune::new(data_band, env.clone()).unwrap().team_deadband(), 1.5);
         let bad = FinetuneConfig { team_deadband: Some(-1.0), ..settings.clone() };
