@@ -119,6 +119,13 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("the data of round {round}"))?;
         let before = learner.counters().updates;
         if before >= end {
+            // A round of no updates (DAgger rounds on a student warm-started with `init_from`
+            // and `updates` 0): its student is the one it started with, whom the next round
+            // rolls out. A finished round has its snapshot already.
+            let snapshot = dir.join(format!("round-{round}.bin"));
+            if !snapshot.exists() {
+                keep_best(&learner, &snapshot, &validation, round, dir, &mut sink, &mut best)?;
+            }
             continue;
         }
         let start = if round == 0 { 0 } else { config.round_end(round - 1) };

@@ -343,6 +343,14 @@ pub(crate) fn learner(
     init_from: Option<&Path>,
 ) -> anyhow::Result<phalanx_rl::Learner> {
     if resume {
+        // A run stopped before its first checkpoint has none; starting it again reuses what
+        // it finished (an imitation run's expert data).
+        anyhow::ensure!(
+            checkpoint.exists(),
+            "resuming: {} does not exist: the run stopped before its first checkpoint, or --out \
+             names another folder; start it again without --resume",
+            checkpoint.display()
+        );
         let device = burn::tensor::Device::flex().autodiff();
         return phalanx_rl::Learner::load(checkpoint, &device).context("resuming");
     }

@@ -42,6 +42,26 @@ fn an_imitation_run_stopped_anywhere_resumes_exactly() {
     }
     let validation = std::fs::read_to_string(run("parts").join("validation.jsonl")).unwrap();
     assert_eq!(validation.lines().count(), 3, "{validation}");
+    // DAgger rounds on a warm-started student without cloning updates: round 0's student is
+    // the one it starts from, validated and kept, which round 1 rolls out.
+    let dagger = CONFIG.replace(
+        r#""updates": 5, "rounds": 2"#,
+        r#""updates": 0, "rounds": 1, "init_from": "whole/round-2.bin""#,
+    );
+    std::fs::write(d.join("dagger.json"), dagger).unwrap();
+    let args = ["train", "imitation", "--config", "dagger.json", "--out", "dagger"];
+    let (stdout, _) = check(&phalanx(d, &args), 0);
+    assert!(stdout.contains("4 of 4"), "{stdout}");
+    assert!(
+        ["round-0.bin", "data-1.bin", "round-1.bin"].iter().all(|f| run("dagger").join(f).exists())
+    );
+    let validation = std::fs::read_to_string(run("dagger").join("validation.jsonl")).unwrap();
+    assert_eq!(validation.lines().count(), 2, "{validation}");
+    // A folder without a checkpoint cannot be resumed: the message says what to do.
+    let (_, stderr) = check(&train(d, "never", &["--resume"]), 2);
+    assert!(
+        stderr.contains("never/checkpoint does not exist") && stderr.contains("without --resume")
+    );
 
     // The student is a method of its own.
     let inst = ["gen", "--size", "20", "--agents", "3", "--seed", "4", "-o", "inst.yaml"];
