@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
+use phalanx_env::MapKind;
 
 /// Arguments of `phalanx gen` (defaults: `GenConfig::default()`).
 #[derive(Debug, clap::Args)]
@@ -25,9 +26,9 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     // Check the extension before spending time on generation.
     phalanx_io::InstanceFormat::of(&args.output)?;
     let config = args.map.config();
-    let instance = match args.kind {
-        Kind::Random => phalanx_gen::generate(&config).context("generating the instance")?,
-        Kind::Maze | Kind::Rooms => placed(args.kind, &config)?,
+    let instance = match args.kind.map_kind() {
+        MapKind::Random => phalanx_gen::generate(&config).context("generating the instance")?,
+        kind => placed(kind, &config)?,
     };
     crate::util::written(phalanx_io::write_instance(&args.output, &instance), &args.output)?;
     let grid = instance.grid();
@@ -43,7 +44,8 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The kinds of map `phalanx gen` draws (`phalanx_env::MapKind`'s, for the command line).
+/// The kinds of map `phalanx gen` draws: `phalanx_env::MapKind`'s, for the command line
+/// (the environment's crate does not depend on clap).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum Kind {
     /// The paper's (docs/spec.md §2).
@@ -54,17 +56,27 @@ enum Kind {
     Rooms,
 }
 
-/// A maze or room map of `config`'s side from its seed, with a formation of its agents and
-/// their translated goals placed on it (`phalanx_gen::formation_on_map`, from the same seed).
-fn placed(kind: Kind, config: &phalanx_gen::GenConfig) -> anyhow::Result<phalanx_core::Instance> {
+impl Kind {
+    /// The environment's name for the kind.
+    fn map_kind(self) -> MapKind {
+        match self {
+            Kind::Random => MapKind::Random,
+            Kind::Maze => MapKind::Maze,
+            Kind::Rooms => MapKind::Rooms,
+        }
+    }
+}
+
+/// A map of `kind` of `config`'s side from its seed (`MapKind::draw`, as a training pool
+/// draws it), with a formation of its agents and their translated goals placed on it
+/// (`phalanx_gen::formation_on_map`, from the same seed).
+fn placed(
+    kind: MapKind,
+    config: &phalanx_gen::GenConfig,
+) -> anyhow::Result<phalanx_core::Instance> {
     use rand::SeedableRng as _;
     let (size, seed) = (config.size, config.seed);
-    let grid = if kind == Kind::Maze {
-        phalanx_gen::maze(size, phalanx_gen::MAZE_CORRIDOR, seed)
-    } else {
-        phalanx_gen::rooms(size, phalanx_gen::ROOM_SIDE, seed)
-    }
-    .context("generating the map")?;
+    let grid = kind.draw(config).context("generating the map")?;
     let r = phalanx_gen::region_side(size);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     phalanx_gen::formation_on_map(&grid, config.n_agents, r, &mut rng).with_context(|| {

@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use phalanx_core::{Cell, DistanceMap, Grid, Instance};
-use phalanx_gen::{GenConfig, formation_on_map, random_formation, region_side};
+use phalanx_gen::{GenConfig, GenError, formation_on_map, random_formation, region_side};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -99,6 +99,21 @@ impl MapKind {
     pub fn is_random(&self) -> bool {
         *self == MapKind::Random
     }
+
+    /// The map of this kind for `config` (its side and seed; the paper's kind also uses its
+    /// density, field of view and agents, whose instance the map is drawn with).
+    ///
+    /// # Errors
+    /// If the generator refuses the settings.
+    pub fn draw(self, config: &GenConfig) -> Result<Grid, GenError> {
+        match self {
+            MapKind::Random => phalanx_gen::generate(config).map(|inst| inst.into_parts().0),
+            MapKind::Maze => {
+                phalanx_gen::maze(config.size, phalanx_gen::MAZE_CORRIDOR, config.seed)
+            }
+            MapKind::Rooms => phalanx_gen::rooms(config.size, phalanx_gen::ROOM_SIDE, config.seed),
+        }
+    }
 }
 
 impl Default for PoolConfig {
@@ -154,18 +169,9 @@ impl TrainPool {
             let maps = own_maps(&config.maps)?;
             return Ok(TrainPool { config: config.clone(), maps, own: true });
         }
-        let seeds = (0..config.n_maps as u64).map(|i| train_seed(config.seed, i));
-        let maps = match config.kind {
-            MapKind::Random => (0..config.n_maps as u64)
-                .map(|i| phalanx_gen::generate(&config.map(i)).map(|inst| inst.into_parts().0))
-                .collect::<Result<Vec<Grid>, _>>()?,
-            MapKind::Maze => seeds
-                .map(|seed| phalanx_gen::maze(config.size, phalanx_gen::MAZE_CORRIDOR, seed))
-                .collect::<Result<_, _>>()?,
-            MapKind::Rooms => seeds
-                .map(|seed| phalanx_gen::rooms(config.size, phalanx_gen::ROOM_SIDE, seed))
-                .collect::<Result<_, _>>()?,
-        };
+        let maps = (0..config.n_maps as u64)
+            .map(|i| config.kind.draw(&config.map(i)))
+            .collect::<Result<Vec<Grid>, _>>()?;
         let own = !config.kind.is_random();
         Ok(TrainPool { config: config.clone(), maps, own })
     }

@@ -38,11 +38,13 @@ const ROOM_EXTRA_DOOR_ONE_IN: u32 = 2;
 /// If `corridor` is 0, the side is out of the generator's range (8 to 4096) or holds fewer
 /// than two lattice cells (`side < 2 · corridor + 3`).
 pub fn maze(side: u32, corridor: u32, seed: u64) -> Result<Grid, GenError> {
-    let pitch = corridor + 1;
-    check(side, corridor > 0 && (side - 1) / pitch >= 2, || {
-        format!("maze of {corridor}-cell corridors")
-    })?;
+    check_side(side)?;
+    let pitch = corridor.saturating_add(1);
     let m = (side - 1) / pitch;
+    if corridor == 0 || m < 2 {
+        let what = format!("maze of {corridor}-cell corridors");
+        return Err(GenError::Kind { side, what });
+    }
     let mut grid = Grid::from_fn(side, side, |_| true);
     for j in 0..m {
         for i in 0..m {
@@ -77,8 +79,11 @@ pub fn maze(side: u32, corridor: u32, seed: u64) -> Result<Grid, GenError> {
 /// If `room` is 0, the side is out of the generator's range (8 to 4096) or holds fewer than
 /// two rooms a side (`side < room + 3`).
 pub fn rooms(side: u32, room: u32, seed: u64) -> Result<Grid, GenError> {
-    let pitch = room + 1;
-    check(side, room > 0 && side > pitch + 1, || format!("two rooms of side {room} a side"))?;
+    check_side(side)?;
+    let pitch = room.saturating_add(1);
+    if room == 0 || side - 1 <= pitch {
+        return Err(GenError::Kind { side, what: format!("two rooms of side {room} a side") });
+    }
     let m = (side - 1).div_ceil(pitch);
     let mut grid = Grid::from_fn(side, side, |c| {
         (c.x as u32).is_multiple_of(pitch) || (c.y as u32).is_multiple_of(pitch)
@@ -100,13 +105,10 @@ pub fn rooms(side: u32, room: u32, seed: u64) -> Result<Grid, GenError> {
     Ok(grid)
 }
 
-/// The generator's range of sides, then `fits`.
-fn check(side: u32, fits: bool, what: impl FnOnce() -> String) -> Result<(), GenError> {
+/// The generator's range of sides (checked before any arithmetic on the side).
+fn check_side(side: u32) -> Result<(), GenError> {
     if !(8..=4096).contains(&side) {
         return Err(GenError::Size(side));
-    }
-    if !fits {
-        return Err(GenError::Kind { side, what: what() });
     }
     Ok(())
 }

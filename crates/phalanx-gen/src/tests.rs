@@ -160,6 +160,8 @@ fn mazes_are_connected_corridors_of_their_width() {
     assert_eq!(maze(4097, 2, 0), Err(GenError::Size(4097)));
     assert!(matches!(maze(8, 3, 0), Err(GenError::Kind { side: 8, .. })));
     assert!(matches!(maze(32, 0, 0), Err(GenError::Kind { .. })));
+    assert_eq!(maze(0, 2, 0), Err(GenError::Size(0)));
+    assert!(matches!(maze(32, u32::MAX, 0), Err(GenError::Kind { .. })));
 }
 
 #[test]
@@ -181,4 +183,6 @@ fn rooms_are_connected_by_one_cell_doors() {
     assert_ne!(rooms(64, 7, 0), rooms(64, 7, 1));
     assert!(matches!(rooms(9, 7, 0), Err(GenError::Kind { side: 9, .. })));
     assert!(rooms(10, 7, 0).is_ok());
+    assert_eq!(rooms(0, 7, 0), Err(GenError::Size(0)));
+    assert!(matches!(rooms(64, u32::MAX, 0), Err(GenError::Kind { .. })));
 }
