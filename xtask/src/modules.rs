@@ -22,6 +22,7 @@ pub const RL_INFERENCE: &[&str] = &[
     "frozen",
     "hierarchy",
     "hyper",
+    "keep",
     "models",
     "net",
     "policy",

@@ -106,9 +106,8 @@ pub(crate) struct EvalCmd {
     /// Probability of a random allowed action per agent and step in the extra rollouts.
     #[arg(long, default_value_t = 0.05, value_parser = util::fraction)]
     random_prob: f64,
-    /// Which rollout counts, a solved one always first.
-    #[arg(long, value_enum, default_value_t = meta::KeepArg::Fastest)]
-    keep: meta::KeepArg,
+    #[command(flatten)]
+    pick: meta::PickArgs,
     #[command(flatten)]
     acting: meta::ActingArgs,
     #[command(flatten)]
@@ -210,12 +209,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     );
     let started = Instant::now();
     anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
-    let rollouts = Rollouts {
-        count: cmd.rollouts,
-        epsilon: cmd.random_prob,
-        seed: cmd.map.seed,
-        keep: cmd.keep.into(),
-    };
+    let rollouts = cmd.pick.rollouts(cmd.rollouts, cmd.random_prob, cmd.map.seed);
     let mut after_first_batch = None;
     let mut progress = |done: usize| {
         after_first_batch.get_or_insert_with(crate::memory::held);

@@ -102,9 +102,32 @@ pub(crate) struct RolloutArgs {
     /// rollouts after the first.
     #[arg(long, default_value_t = 0.05, value_parser = crate::util::fraction)]
     random_prob: f64,
-    /// Learned policies: which rollout counts, a solved one always first.
-    #[arg(long, value_enum, default_value_t = KeepArg::Fastest)]
-    keep: KeepArg,
+    #[command(flatten)]
+    pick: PickArgs,
+}
+
+/// Which rollout counts (`solve`, `bench`, `demo`, `eval`).
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct PickArgs {
+    /// Learned policies: which rollout counts, a solved one always first: `fastest` (fewest
+    /// steps, then the lower formation loss), `tightest` (the lower formation loss, then
+    /// fewest steps) or `within:BUDGET` (the tightest of the rollouts within BUDGET × the
+    /// makespan's lower bound, else the fastest). Default: the policy's own, `within:1.1`
+    /// for the imitation student, `fastest` for the others.
+    #[arg(long, value_name = "RULE", value_parser = keep)]
+    keep: Option<Keep>,
+}
+
+/// Reads `--keep`.
+fn keep(text: &str) -> Result<Keep, String> {
+    text.parse()
+}
+
+impl PickArgs {
+    /// The rollouts of `count` tries at the random-action rate `epsilon`, drawn from `seed`.
+    pub(crate) fn rollouts(&self, count: usize, epsilon: f64, seed: u64) -> Rollouts {
+        Rollouts { count, epsilon, seed, keep: self.keep }
+    }
 }
 
 /// How a learned policy acts at test time (`solve`, `eval`): `--escape`, the stall escape
@@ -122,6 +145,23 @@ pub(crate) struct ActingArgs {
     /// takes longer (docs/imitation.md). No effect on the other policies.
     #[arg(long, value_name = "CELLS", value_parser = crate::util::team_deadband)]
     team_deadband: Option<f64>,
+    /// The imitation student: the dead band of its second rollout, played greedily, or
+    /// `none` for a second rollout like the others (default: the student's 0; no effect on
+    /// the other policies; docs/imitation.md, *A second band in the rollouts*).
+    #[arg(long, value_name = "CELLS|none", value_parser = second_band)]
+    second_band: Option<SecondBand>,
+}
+
+/// A parsed `--second-band`: `None` for `none`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SecondBand(Option<f64>);
+
+/// Reads `--second-band`.
+fn second_band(text: &str) -> Result<SecondBand, String> {
+    if text == "none" {
+        return Ok(SecondBand(None));
+    }
+    crate::util::team_deadband(text).map(|cells| SecondBand(Some(cells)))
 }
 
 /// A parsed `--escape`: `None` for `off`.
@@ -142,24 +182,9 @@ impl ActingArgs {
         if let Some(cells) = self.team_deadband {
             policy.set_team_deadband(cells).expect("checked by the flag's parser");
         }
-    }
-}
-
-/// `--keep`: which of an instance's rollouts counts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum KeepArg {
-    /// Fewest steps, then the lower formation loss.
-    Fastest,
-    /// The lower Table II formation loss, then fewest steps.
-    Tightest,
-}
-
-impl From<KeepArg> for Keep {
-    /// The library's rule of the same name (one spelling: [`Keep::NAMED`]).
-    fn from(keep: KeepArg) -> Keep {
-        use clap::ValueEnum as _;
-        let value = keep.to_possible_value().expect("every rule is named");
-        value.get_name().parse().expect("the command line names the library's rules")
+        if let Some(SecondBand(cells)) = self.second_band {
+            policy.set_rollout_band(cells).expect("checked by the flag's parser");
+        }
     }
 }
 
@@ -167,7 +192,7 @@ impl RolloutArgs {
     /// The rollouts, their random actions drawn from `seed`, at most `max` of them.
     pub(crate) fn rollouts(&self, seed: u64, max: usize) -> Rollouts {
         let count = (self.rollouts as usize).min(max);
-        Rollouts { count, epsilon: self.random_prob, seed, keep: self.keep.into() }
+        self.pick.rollouts(count, self.random_prob, seed)
     }
 }
 
@@ -176,15 +201,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_command_line_names_every_keep_rule_as_the_library_does() {
-        use clap::ValueEnum as _;
-        let names: Vec<String> = KeepArg::value_variants()
-            .iter()
-            .map(|v| v.to_possible_value().unwrap().get_name().to_owned())
-            .collect();
-        let library: Vec<&str> = Keep::NAMED.iter().map(|(name, _)| *name).collect();
-        assert_eq!(names, library);
-        assert_eq!(Keep::from(KeepArg::Tightest), Keep::Tightest);
-        assert_eq!(Keep::from(KeepArg::Fastest), Keep::Fastest);
+    fn the_command_line_reads_every_keep_rule_as_the_library_does() {
+        for (name, rule) in Keep::NAMED {
+            assert_eq!(keep(name), Ok(rule));
+        }
+        assert_eq!(keep("within:1.1"), Ok(Keep::Within(1.1)));
+        assert!(keep("within:0.9").unwrap_err().contains("at least 1"));
+        assert!(keep("slowest").unwrap_err().contains("one of fastest, tightest, within:BUDGET"));
+        assert_eq!(second_band("none"), Ok(SecondBand(None)));
+        assert_eq!(second_band("0.5"), Ok(SecondBand(Some(0.5))));
+        assert!(second_band("-1").is_err());
     }
 }

@@ -209,15 +209,21 @@ impl Method {
             "imitation" => {
                 // `imitation:off`, `imitation:VISITS:PROB`: another stall escape than the
                 // student's own; `imitation:band=CELLS`: another dead band of the team
-                // vector; both joined by `+` (`imitation:off+band=0.75`).
+                // vector; `imitation:second=CELLS|none`: another band of the second rollout
+                // (none: like the others); joined by `+` (`imitation:off+band=0.75`).
                 let (mut policy, _) = models::load(sources.imitation, name).map_err(model)?;
                 let bound = |message| MethodError::Bound { spec: spec.to_owned(), message };
                 for part in param.into_iter().flat_map(|param| param.split('+')) {
-                    if let Some(cells) = part.strip_prefix("band=") {
-                        let cells = cells
-                            .parse()
-                            .map_err(|_| bound(format!("band {cells:?} is not a number")))?;
-                        policy.set_team_deadband(cells).map_err(|err| bound(err.to_string()))?;
+                    let cells = |text: &str| {
+                        text.parse().map_err(|_| bound(format!("band {text:?} is not a number")))
+                    };
+                    if let Some(text) = part.strip_prefix("band=") {
+                        policy
+                            .set_team_deadband(cells(text)?)
+                            .map_err(|err| bound(err.to_string()))?;
+                    } else if let Some(text) = part.strip_prefix("second=") {
+                        let band = if text == "none" { None } else { Some(cells(text)?) };
+                        policy.set_rollout_band(band).map_err(|err| bound(err.to_string()))?;
                     } else {
                         policy.set_escape(parse_escape(part).map_err(bound)?);
                     }
@@ -360,5 +366,22 @@ mod tests {
         assert_eq!(acting("imitation:off+band=0"), (None, 0.0));
         let escape = Some(phalanx_rl::Escape { visits: 3, prob: 0.5 });
         assert_eq!(acting("imitation:band=1+3:0.5"), (escape, 1.0));
+    }
+
+    #[test]
+    fn the_student_plays_its_second_rollout_at_band_0_unless_its_name_says_otherwise() {
+        let second = |spec: &str| match Method::named(spec, &Sources::default()).unwrap().solver {
+            Solver::EndToEnd(policy) => (policy.rollout_band(), policy.keep()),
+            _ => panic!("{spec}: a learned policy"),
+        };
+        let keep = phalanx_rl::Keep::STUDENT;
+        assert_eq!(second("imitation"), (Some(phalanx_rl::STUDENT_ROLLOUT_BAND), keep));
+        assert_eq!(second("imitation:second=none"), (None, keep));
+        assert_eq!(second("imitation:second=0.5+off"), (Some(0.5), keep));
+        assert_eq!(second("e2e"), (None, phalanx_rl::Keep::Fastest));
+        let err = Method::named("imitation:second=-1", &Sources::default()).unwrap_err();
+        assert!(err.to_string().contains("dead band -1"), "{err}");
+        let err = Method::named("imitation:second=x", &Sources::default()).unwrap_err();
+        assert_eq!(err.to_string(), "method imitation:second=x: band \"x\" is not a number");
     }
 }

@@ -116,3 +116,33 @@ fn cells_csv_and_table_agree_with_the_records() {
     let table = markdown(&cases, &cells);
     assert!(table.lines().any(|l| l.contains("| cbs |") && l.ends_with("| 0.002 |")), "{table}");
 }
+
+#[test]
+fn the_student_plays_its_second_rollout_greedily_at_its_second_band() {
+    use phalanx_eval::Sources;
+    use phalanx_rl::Keep;
+    let case = Case::new(20, 3, 0.15, None);
+    let run = |spec: &str, instance: &phalanx_core::Instance, rollouts| {
+        let mut method = Method::named(spec, &Sources::default()).unwrap();
+        let settings = Settings { time_limit_s: 10.0, rollouts };
+        let solved = method.run(instance, &settings).unwrap();
+        let loss = solved.summary.metrics.map(|m| m.formation_loss);
+        (solved.plan.unwrap(), loss.unwrap())
+    };
+    let mut differ = 0;
+    for index in 0..4 {
+        let (instance, _) = case.instance(1, index).unwrap();
+        let own = run("imitation", &instance, Rollouts::default());
+        let narrow = run("imitation:band=0", &instance, Rollouts::default());
+        differ += usize::from(own.0 != narrow.0);
+        // Two rollouts, the second at the band 0: both greedy, whatever the random-action
+        // rate; the tighter of the two counts.
+        let rollouts = Rollouts { count: 2, epsilon: 1.0, seed: 5, keep: Some(Keep::Tightest) };
+        let tighter = if narrow.1 < own.1 { &narrow } else { &own };
+        assert_eq!(&run("imitation", &instance, rollouts), tighter, "instance {index}");
+        // Without a second band, the second rollout is a random walk, never the narrow one.
+        let random = run("imitation:second=none", &instance, rollouts);
+        assert!(random == own || random.0 != narrow.0, "instance {index}");
+    }
+    assert!(differ > 0, "the two bands played the same plans");
+}

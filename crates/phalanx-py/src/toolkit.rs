@@ -139,10 +139,10 @@ pub(crate) fn read_instance(path: PathBuf, agents: Option<usize>) -> PyResult<Py
 
 /// Solves `instance` with the method `planner` (`cbs`, `ecbs:1.5`, `swarm`, `astar`, `jsa`,
 /// `pathfinding`, `leader`, `hrl`, `e2e`, …, as `phalanx bench` names them): the summary as
-/// JSON and the plan, if one came back. `keep` (`fastest` or `tightest`) says which of a
-/// learned method's rollouts counts.
+/// JSON and the plan, if one came back. `keep` (`fastest`, `tightest`, `within:BUDGET`;
+/// `None`: the method's own) says which of a learned method's rollouts counts.
 #[pyfunction]
-#[pyo3(signature = (instance, planner = "cbs", time_limit = 60.0, rollouts = 8, seed = 0, keep = "fastest"))]
+#[pyo3(signature = (instance, planner = "cbs", time_limit = 60.0, rollouts = 8, seed = 0, keep = None))]
 pub(crate) fn solve(
     py: Python<'_>,
     instance: &PyInstance,
@@ -150,7 +150,7 @@ pub(crate) fn solve(
     time_limit: f64,
     rollouts: usize,
     seed: u64,
-    keep: &str,
+    keep: Option<&str>,
 ) -> PyResult<(String, Option<Paths>)> {
     if !(time_limit.is_finite() && time_limit > 0.0) {
         return Err(bad(format!("time_limit {time_limit} is not a positive number of seconds")));
@@ -158,7 +158,7 @@ pub(crate) fn solve(
     if rollouts == 0 {
         return Err(bad("rollouts 0: at least one rollout"));
     }
-    let keep: Keep = keep.parse().map_err(bad)?;
+    let keep: Option<Keep> = keep.map(str::parse).transpose().map_err(bad)?;
     let mut method = Method::named(planner, &Sources::default()).map_err(|err| error(&err))?;
     method.fits(&instance.instance).map_err(|why| bad(format!("{planner}: {why}")))?;
     let settings = Settings {

@@ -270,15 +270,30 @@ def test_copies_of_observations_are_plain_arrays_that_stay():
     assert kept["agents"] is not obs["agent_0"]["agents"]
 
 
-def test_the_learned_solver_keeps_the_rollout_asked_for(instance_file):
+def test_the_learned_solver_keeps_the_rollout_asked_for(instance_file, tmp_path):
     instance = phalanx.read_instance(instance_file)
     fastest = phalanx.solve(instance, "hrl", rollouts=4)
     tightest = phalanx.solve(instance, "hrl", rollouts=4, keep="tightest")
     assert fastest.solved and tightest.solved
     assert tightest.metrics["formation_loss"] <= fastest.metrics["formation_loss"]
     assert tightest.metrics["makespan"] >= fastest.metrics["makespan"]
-    with pytest.raises(ValueError, match="keep \"best\": one of fastest, tightest"):
+    with pytest.raises(ValueError, match="keep \"best\": one of fastest, tightest, within"):
         phalanx.solve(instance, "hrl", keep="best")
+    with pytest.raises(ValueError, match="not a number of at least 1"):
+        phalanx.solve(instance, "hrl", keep="within:0.9")
+    # The student keeps by its own rule unless told: the tightest within 1.1 x the lower
+    # bound, its second rollout at the band 0, as `phalanx solve` does.
+    instance = phalanx.generate(seed=2)
+    instance.write(tmp_path / "seed2.yaml")
+    student = phalanx.solve(instance, "imitation", rollouts=4)
+    cli = [phalanx_bin(), "solve", str(tmp_path / "seed2.yaml"), "--planner", "imitation"]
+    cli += ["--rollouts", "4", "--json"]
+    out = subprocess.run(cli, check=True, capture_output=True, text=True).stdout
+    assert student.solved and json.loads(out)["metrics"] == student.metrics
+    # On this instance the band-0 rollout is as fast as the fastest and tighter.
+    fast = phalanx.solve(instance, "imitation:second=none", rollouts=4, keep="fastest")
+    assert fast.metrics["makespan"] == student.metrics["makespan"]
+    assert student.metrics["formation_loss"] < fast.metrics["formation_loss"]
 
 
 def test_the_parallel_step_reads_actions_as_python_did():

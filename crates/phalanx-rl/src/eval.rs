@@ -21,6 +21,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::hierarchy::{Episodes, Hierarchy};
+use crate::keep::Keep;
 use crate::policy::{Policy, row_offsets};
 
 /// What one evaluated episode measured, with its plan.
@@ -78,50 +79,16 @@ pub struct Rollouts {
     pub epsilon: f64,
     /// Seed of the random actions.
     pub seed: u64,
-    /// Which rollout counts. Not written when the default.
-    #[serde(default, skip_serializing_if = "Keep::is_fastest")]
-    pub keep: Keep,
+    /// Which rollout counts (`None`: the policy's own, [`Policy::keep`]; the hierarchy's:
+    /// [`Keep::Fastest`]). Not written when `None`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub keep: Option<Keep>,
 }
 
 impl Default for Rollouts {
     /// One greedy rollout.
     fn default() -> Self {
-        Rollouts { count: 1, epsilon: 0.0, seed: 0, keep: Keep::Fastest }
-    }
-}
-
-/// Which of an instance's rollouts counts; a solved one always before an unsolved one.
-/// Parsed from its name ([`Keep::NAMED`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Keep {
-    /// Fewest steps, then the lower Table II formation loss (the default).
-    #[default]
-    Fastest,
-    /// The lower Table II formation loss, then fewest steps: for a method whose objective
-    /// is the formation.
-    Tightest,
-}
-
-impl Keep {
-    /// Every rule with its name (`fastest`, `tightest`), as the command line and Python
-    /// spell it.
-    pub const NAMED: [(&'static str, Keep); 2] =
-        [("fastest", Keep::Fastest), ("tightest", Keep::Tightest)];
-
-    fn is_fastest(&self) -> bool {
-        *self == Keep::Fastest
-    }
-}
-
-impl std::str::FromStr for Keep {
-    type Err = String;
-
-    fn from_str(name: &str) -> Result<Keep, String> {
-        Keep::NAMED.iter().find(|(n, _)| *n == name).map(|&(_, keep)| keep).ok_or_else(|| {
-            let names: Vec<&str> = Keep::NAMED.iter().map(|(n, _)| *n).collect();
-            format!("keep {name:?}: one of {}", names.join(", "))
-        })
+        Rollouts { count: 1, epsilon: 0.0, seed: 0, keep: None }
     }
 }
 
@@ -140,11 +107,22 @@ pub fn evaluate(
     rollouts: Rollouts,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
-    let mut envs = Vec::new();
-    let mut play = |chunk: &[Instance], caps: &[usize], epsilon, rng: &mut ChaCha8Rng| {
-        play_low_level(policy, task, env, chunk, caps, epsilon, rng, &mut envs)
-    };
-    evaluate_with(&mut play, instances, batch, rollouts, progress)
+    let keep = rollouts.keep.unwrap_or(policy.keep());
+    // The second rollout at the policy's other band, with environments of its own.
+    let second = policy.rollout_band().filter(|_| env.team_vector);
+    let second = second.map(|cells| EnvConfig { team_deadband: cells, ..env.clone() });
+    let (mut envs, mut second_envs) = (Vec::new(), Vec::new());
+    let mut play =
+        |chunk: &[Instance], caps: &[usize], r: usize, rng: &mut ChaCha8Rng| match &second {
+            Some(second) if r == 1 => {
+                play_low_level(policy, task, second, chunk, caps, 0.0, rng, &mut second_envs)
+            }
+            _ => {
+                let epsilon = if r == 0 { 0.0 } else { rollouts.epsilon };
+                play_low_level(policy, task, env, chunk, caps, epsilon, rng, &mut envs)
+            }
+        };
+    evaluate_with(&mut play, instances, batch, rollouts, keep, progress)
 }
 
 /// One rollout of `policy` on every instance at the random-action rate `rollouts.epsilon`
@@ -184,45 +162,42 @@ pub fn evaluate_hierarchy(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut episodes = Episodes::new();
-    let mut play = |chunk: &[Instance], caps: &[usize], epsilon, rng: &mut ChaCha8Rng| {
+    let mut play = |chunk: &[Instance], caps: &[usize], r: usize, rng: &mut ChaCha8Rng| {
+        let epsilon = if r == 0 { 0.0 } else { rollouts.epsilon };
         play_hierarchy(hierarchy, env, chunk, caps, epsilon, rng, &mut episodes)
     };
-    evaluate_with(&mut play, instances, batch, rollouts, progress)
+    let keep = rollouts.keep.unwrap_or_default();
+    evaluate_with(&mut play, instances, batch, rollouts, keep, progress)
 }
 
-/// One rollout of a chunk of instances in lockstep: `(chunk, caps, epsilon, rng)`; episode
-/// `e` stops unsolved after `caps[e]` steps (see [`Tracks::new`]).
-type Play<'a> = dyn FnMut(&[Instance], &[usize], f64, &mut ChaCha8Rng) -> Result<Vec<EvalEpisode>, EnvError>
+/// Rollout `r` of a chunk of instances in lockstep: `(chunk, caps, r, rng)`; episode `e`
+/// stops unsolved after `caps[e]` steps (see [`Tracks::new`]).
+type Play<'a> = dyn FnMut(&[Instance], &[usize], usize, &mut ChaCha8Rng) -> Result<Vec<EvalEpisode>, EnvError>
     + 'a;
 
-/// The rollouts of every chunk, keeping each instance's best.
+/// The rollouts of every chunk, keeping each instance's best by `keep`.
 fn evaluate_with(
     play: &mut Play<'_>,
     instances: &[Instance],
     batch: usize,
     rollouts: Rollouts,
+    keep: Keep,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut res: Vec<EvalEpisode> = Vec::with_capacity(instances.len());
     for (c, chunk) in instances.chunks(batch.max(1)).enumerate() {
         let uncapped = vec![usize::MAX; chunk.len()];
-        let mut best = play(chunk, &uncapped, 0.0, &mut ChaCha8Rng::seed_from_u64(0))?;
+        let mut best = play(chunk, &uncapped, 0, &mut ChaCha8Rng::seed_from_u64(0))?;
         for r in 1..rollouts.count {
             let mut rng = ChaCha8Rng::seed_from_u64(rollouts.seed);
             rng.set_stream(((c as u64) << 20) | r as u64);
-            // Keeping the fastest, a rollout still running after the steps of a solved one
-            // cannot be kept: it stops there (the random draws of the others do not change).
-            let caps: Vec<usize> = best
-                .iter()
-                .map(|kept| match rollouts.keep {
-                    Keep::Fastest if kept.success => kept.steps,
-                    _ => usize::MAX,
-                })
-                .collect();
-            let again = play(chunk, &caps, rollouts.epsilon, &mut rng)?;
+            // A rollout still running after the steps past which it cannot be kept stops
+            // there (the random draws of the others do not change).
+            let caps: Vec<usize> = best.iter().map(|kept| cap(keep, kept)).collect();
+            let again = play(chunk, &caps, r, &mut rng)?;
             for (kept, new) in best.iter_mut().zip(again) {
                 let decisions = kept.decisions + new.decisions;
-                if better(&new, kept, rollouts.keep) {
+                if better(&new, kept, keep) {
                     *kept = new;
                 }
                 kept.decisions = decisions;
@@ -234,14 +209,43 @@ fn evaluate_with(
     Ok(res)
 }
 
-/// Whether rollout `a` is better than `b` by `keep` (solved before unsolved always).
+/// Whether `episode` is solved within the makespan budget of [`Keep::Within`] (every solved
+/// episode for the other rules).
+fn admits(keep: Keep, episode: &EvalEpisode) -> bool {
+    match keep {
+        Keep::Within(budget) => {
+            episode.success && episode.steps as f64 <= budget * f64::from(episode.lower_bound)
+        }
+        Keep::Fastest | Keep::Tightest => episode.success,
+    }
+}
+
+/// The steps after which a rollout can no longer beat `kept`, the best one so far by `keep`.
+fn cap(keep: Keep, kept: &EvalEpisode) -> usize {
+    match keep {
+        Keep::Fastest if kept.success => kept.steps,
+        // Within the budget, a slower rollout may still be tighter; past it, only a faster
+        // one counts.
+        Keep::Within(budget) if kept.success => {
+            let steps = (budget * f64::from(kept.lower_bound)).floor() as usize;
+            steps.max(kept.steps)
+        }
+        _ => usize::MAX,
+    }
+}
+
+/// Whether rollout `a` is better than `b` by `keep` (solved before unsolved always, then
+/// within the budget of [`Keep::Within`] before past it).
 fn better(a: &EvalEpisode, b: &EvalEpisode, keep: Keep) -> bool {
     let solved = (!a.success).cmp(&!b.success);
+    let (a_in, b_in) = (admits(keep, a), admits(keep, b));
     let steps = a.steps.cmp(&b.steps);
     let loss = a.formation_loss.total_cmp(&b.formation_loss);
     let order = match keep {
         Keep::Fastest => solved.then(steps).then(loss),
         Keep::Tightest => solved.then(loss).then(steps),
+        Keep::Within(_) if a_in && b_in => loss.then(steps),
+        Keep::Within(_) => solved.then((!a_in).cmp(&!b_in)).then(steps).then(loss),
     };
     order.is_lt()
 }
@@ -497,15 +501,64 @@ impl EvalSummary {
 
 #[cfg(test)]
 mod tests {
-    use super::Keep;
+    use super::{EvalEpisode, Keep, better, cap};
 
     #[test]
     fn a_keep_rule_is_parsed_from_its_name_only() {
         assert_eq!("fastest".parse::<Keep>(), Ok(Keep::Fastest));
         assert_eq!("tightest".parse::<Keep>(), Ok(Keep::Tightest));
+        assert_eq!("within:1.1".parse::<Keep>(), Ok(Keep::Within(1.1)));
         assert_eq!(
             "Tightest".parse::<Keep>(),
-            Err("keep \"Tightest\": one of fastest, tightest".into())
+            Err("keep \"Tightest\": one of fastest, tightest, within:BUDGET".into())
         );
+        for bad in ["within:0.99", "within:x", "within:inf", "within:"] {
+            let err = bad.parse::<Keep>().unwrap_err();
+            assert!(err.contains("is not a number of at least 1"), "{bad}: {err}");
+        }
+        for keep in [Keep::Fastest, Keep::Tightest, Keep::Within(1.25)] {
+            assert_eq!(keep.to_string().parse(), Ok(keep));
+        }
+    }
+
+    fn episode(success: bool, steps: usize, loss: f64) -> EvalEpisode {
+        EvalEpisode {
+            n_agents: 3,
+            success,
+            steps,
+            lower_bound: 20,
+            collisions: 0,
+            sum_of_costs: 0,
+            formation_loss: loss,
+            formation_loss_mean: 0.0,
+            start_formation_loss: 0.0,
+            final_formation_loss: 0.0,
+            formation_share: None,
+            decisions: 0,
+            stall: None,
+            plan: phalanx_core::Plan::new(3),
+            choices: None,
+        }
+    }
+
+    #[test]
+    fn within_a_budget_the_tightest_counts_and_past_it_the_fastest() {
+        let within = Keep::Within(1.1); // 22 steps on a lower bound of 20
+        let (fast, tight, slow_tight) =
+            (episode(true, 20, 2.0), episode(true, 22, 1.0), episode(true, 23, 0.1));
+        assert!(better(&tight, &fast, within) && !better(&fast, &tight, within));
+        assert!(better(&fast, &slow_tight, within) && better(&tight, &slow_tight, within));
+        // Both past the budget: the faster.
+        let slower = episode(true, 30, 0.0);
+        assert!(better(&slow_tight, &slower, within));
+        // Solved before unsolved, whatever the loss.
+        assert!(better(&slower, &episode(false, 10, 0.0), within));
+        // A rollout can still beat the best so far until the budget's steps, or until the
+        // best's own steps when it is past the budget.
+        assert_eq!(cap(within, &fast), 22);
+        assert_eq!(cap(within, &slower), 30);
+        assert_eq!(cap(within, &episode(false, 40, 0.0)), usize::MAX);
+        assert_eq!(cap(Keep::Fastest, &slower), 30);
+        assert_eq!(cap(Keep::Tightest, &slower), usize::MAX);
     }
 }

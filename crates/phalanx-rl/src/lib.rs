@@ -48,6 +48,7 @@ mod frozen;
 pub mod hierarchy;
 mod hyper;
 pub mod imitation;
+pub mod keep;
 pub mod learner;
 pub mod meta_env;
 pub mod models;
@@ -63,11 +64,12 @@ pub mod weight;
 pub use agent::{AgentError, AgentHierarchy, AgentPolicy, Features};
 pub use escape::Escape;
 pub use eval::evaluate_hierarchy;
-pub use eval::{EvalEpisode, EvalSummary, Keep, Rollouts, evaluate};
+pub use eval::{EvalEpisode, EvalSummary, Rollouts, evaluate};
 pub use hierarchy::{
     Episodes, FormationWeight, Hierarchy, LowLevel, MetaInfo, MetaPolicy, Multiples, PolicyRef,
     ScriptedMeta,
 };
+pub use keep::{Keep, STUDENT_ROLLOUT_BAND};
 pub use learner::{Counters, EpsilonSchedule, ImitationStats, Learner, LearnerConfig, UpdateStats};
 pub use meta_env::{MetaEnv, MetaEnvConfig};
 pub use net::{EncoderConfig, NetConfigError, QNet, QNetConfig, RecurrentState};

@@ -16,7 +16,10 @@ use thiserror::Error;
 
 use crate::hierarchy::{HierarchyError, LowLevelError};
 use crate::policy_file::{Header, load_policy_any};
-use crate::{CheckpointError, Escape, Hierarchy, LowLevel, MetaInfo, Policy, PolicyRef};
+use crate::{
+    CheckpointError, Escape, Hierarchy, Keep, LowLevel, MetaInfo, Policy, PolicyRef,
+    STUDENT_ROLLOUT_BAND,
+};
 
 /// File names a weights directory may hold, in order of preference.
 const WEIGHT_FILES: [&str; 2] = ["policy.bin", "checkpoint"];
@@ -133,7 +136,9 @@ fn default_dirs(name: &str) -> Vec<PathBuf> {
 
 /// Loads the policy `name` from `path` (a file or a weights directory) or the shipped model,
 /// on the CPU, with its header and file. The `imitation` student acts with its stall escape
-/// ([`Escape::STUDENT`]), wherever it is loaded; the other policies greedily as trained.
+/// ([`Escape::STUDENT`]) and plays its test-time rollouts as [`Keep::STUDENT`] and
+/// [`STUDENT_ROLLOUT_BAND`] say, wherever it is loaded; the other policies greedily as
+/// trained, the fastest rollout kept.
 ///
 /// # Errors
 /// If no file is found or it cannot be read.
@@ -147,6 +152,8 @@ pub fn load_with_header(
     check_kind(&file, &header, name)?;
     if name == "imitation" {
         policy.set_escape(Some(Escape::STUDENT));
+        policy.set_keep(Keep::STUDENT);
+        policy.set_rollout_band(Some(STUDENT_ROLLOUT_BAND)).expect("a valid band");
     }
     Ok((policy, header, file))
 }

@@ -18,6 +18,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::escape::{Escape, Stuck};
 use crate::frozen::{FrozenNet, State};
+use crate::keep::Keep;
 use crate::net::{MASKED_Q, QNet, QNetConfig, masked_argmax};
 use phalanx_env::obs::VECTOR_LEN;
 use phalanx_env::{EnvConfig, ObsBuffers, Task};
@@ -40,6 +41,10 @@ pub struct Policy {
     /// When set, actions are drawn from the softmax of the masked scores at this
     /// temperature instead of taken greedily ([`Policy::set_sampling`]).
     sampling: Option<f32>,
+    /// Which of its test-time rollouts counts unless the caller says ([`Policy::keep`]).
+    keep: Keep,
+    /// The dead band of its second test-time rollout ([`Policy::rollout_band`]).
+    rollout_band: Option<f64>,
 }
 
 /// Why a saved recurrent state does not fit a policy's network.
@@ -76,6 +81,8 @@ impl Policy {
             team_deadband: phalanx_env::obs::TEAM_DEADBAND,
             stuck: vec![],
             sampling: None,
+            keep: Keep::Fastest,
+            rollout_band: None,
         }
     }
 
@@ -122,6 +129,37 @@ impl Policy {
     /// The team vector's dead band of the environments it acts in.
     pub fn team_deadband(&self) -> f64 {
         self.team_deadband
+    }
+
+    /// Keeps its test-time rollouts by `keep` unless the caller's [`crate::Rollouts`] say
+    /// otherwise (default [`Keep::Fastest`]; the planners' student: [`Keep::STUDENT`]).
+    pub fn set_keep(&mut self, keep: Keep) {
+        self.keep = keep;
+    }
+
+    /// The rule that keeps one of its test-time rollouts.
+    pub fn keep(&self) -> Keep {
+        self.keep
+    }
+
+    /// Plays its second test-time rollout greedily at the team vector's dead band `cells`
+    /// instead of its own (`None`, the default: at its own, with random actions as every
+    /// rollout after the first; the planners' student: [`crate::STUDENT_ROLLOUT_BAND`]).
+    /// Only a network that reads the team vector acts differently.
+    ///
+    /// # Errors
+    /// A band that is negative or not a number.
+    pub fn set_rollout_band(&mut self, cells: Option<f64>) -> Result<(), phalanx_env::EnvError> {
+        if let Some(cells) = cells {
+            phalanx_env::check_team_deadband(cells)?;
+        }
+        self.rollout_band = cells;
+        Ok(())
+    }
+
+    /// The dead band of its second test-time rollout.
+    pub fn rollout_band(&self) -> Option<f64> {
+        self.rollout_band
     }
 
     /// The network sizes.

@@ -261,6 +261,25 @@ fn flags_that_would_print_nonsense_are_refused() {
     let args = ["solve", "i.yaml", "--planner", "pathfinding", "--rollouts", "1000000000"];
     let (_, stderr) = check(&phalanx(d, &args), 2);
     assert!(stderr.contains("--rollouts"), "{stderr}");
+    // A rollout rule's budget below the lower bound would keep nothing; a band below 0 has
+    // no meaning: both refused with the value, for every command that takes them.
+    for (flag, value, why) in [
+        ("--keep", "within:0.5", "at least 1"),
+        ("--keep", "within:NaN", "at least 1"),
+        ("--keep", "slowest", "one of fastest, tightest, within:BUDGET"),
+        ("--second-band", "-1", "0 or more"),
+        ("--second-band", "inf", "not a finite number"),
+    ] {
+        let flag_value = format!("{flag}={value}");
+        let args = ["solve", "i.yaml", "--planner", "imitation", &flag_value];
+        let (_, stderr) = check(&phalanx(d, &args), 2);
+        assert!(stderr.contains(flag) && stderr.contains(value), "{stderr}");
+        assert!(stderr.contains(why), "{stderr}");
+    }
+    let args = ["bench", "files", "i.yaml", "--methods", "imitation:second=-1", "--out", "b"];
+    let (_, stderr) = check(&phalanx(d, &args), 2);
+    assert!(stderr.contains("imitation:second=-1"), "{stderr}");
+    assert!(!d.join("b").exists(), "no bench.json, no runs.jsonl");
 }
 
 #[test]

@@ -57,13 +57,16 @@ def solve(
     time_limit: float = 60.0,
     rollouts: int = 8,
     seed: int = 0,
-    keep: str = "fastest",
+    keep: str | None = None,
 ) -> Solution:
     """Solves ``instance`` (or the instance file at that path) with ``planner``: ``cbs``,
     ``ecbs[:W]``, ``astar``, ``swarm``, ``jsa[:W]``, or the learned ``pathfinding``,
-    ``leader[:L]``, ``hrl[:M]``, ``e2e`` (shipped models; ``rollouts`` test-time rollouts,
-    of which the one with the fewest steps counts, or with ``keep="tightest"`` the one with
-    the lowest formation loss)."""
+    ``leader[:L]``, ``hrl[:M]``, ``e2e``, ``imitation`` (shipped models; ``rollouts``
+    test-time rollouts, of which by default (``keep=None``) the method's own rule picks one:
+    the fastest, and for ``imitation`` the tightest within 1.1 × the makespan's lower bound
+    (its second rollout played at the dead band 0; ``imitation:second=none`` plays it like
+    the others); ``keep="fastest"``, ``"tightest"`` or ``"within:BUDGET"`` for another
+    rule)."""
     if not isinstance(instance, Instance):
         instance = read_instance(instance)
     summary_json, plan = _phalanx.solve(

@@ -165,10 +165,35 @@ fn evaluation_does_not_depend_on_the_batch_and_extra_rollouts_never_hurt() {
     assert!(a.success_rate >= b.success_rate);
     // The same rollouts, the one with the lowest formation loss kept: solved as often, never
     // a higher loss, never fewer steps.
-    let tightest = run(3, Rollouts { count: 4, epsilon: 0.3, seed: 1, keep: Keep::Tightest });
+    let keeping = |keep| run(3, Rollouts { count: 4, epsilon: 0.3, seed: 1, keep: Some(keep) });
+    let tightest = keeping(Keep::Tightest);
     for (tight, fast) in tightest.iter().zip(&more) {
         assert_eq!(tight.success, fast.success);
         assert!(tight.formation_loss <= fast.formation_loss);
         assert!(tight.steps >= fast.steps);
     }
+    // Within a budget no rollout exceeds, the same as the tightest; within a budget of the
+    // lower bound itself, the tightest of the rollouts that take no more, else the fastest.
+    assert_eq!(keeping(Keep::Within(1e9)), tightest);
+    for (kept, fast) in keeping(Keep::Within(1.0)).iter().zip(&more) {
+        assert_eq!(kept.success, fast.success);
+        if fast.success && fast.steps == fast.lower_bound as usize {
+            assert_eq!(kept.steps, fast.steps);
+            assert!(kept.formation_loss <= fast.formation_loss);
+        } else {
+            assert_eq!(kept, fast);
+        }
+    }
+    // The policy's own rule unless the rollouts name one.
+    let mut tight = policy();
+    tight.set_keep(Keep::Tightest);
+    let own = Rollouts { count: 4, epsilon: 0.3, seed: 1, ..Rollouts::default() };
+    let env = EnvConfig { step_limit: Some(40), ..EnvConfig::default() };
+    let played = evaluate(&mut tight, Task::PathFinding, &env, &instances, 3, own, &mut |_| {});
+    assert_eq!(played.unwrap(), tightest);
+    // A policy without the team vector has no dead band: a second one changes nothing.
+    let mut second = policy();
+    second.set_rollout_band(Some(0.0)).unwrap();
+    let played = evaluate(&mut second, Task::PathFinding, &env, &instances, 3, own, &mut |_| {});
+    assert_eq!(played.unwrap(), more);
 }

@@ -1,0 +1,74 @@
+//! Which of a learned method's test-time rollouts counts ([`Keep`]), and the second band the
+//! planners' student plays one of them at: the rules [`crate::eval`] applies and a
+//! [`crate::Policy`] carries as its own.
+
+use serde::{Deserialize, Serialize};
+
+/// Which of an instance's rollouts counts; a solved one always before an unsolved one.
+/// Parsed from its name ([`Keep::NAMED`], `within:BUDGET`) and written back the same way.
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Keep {
+    /// Fewest steps, then the lower Table II formation loss (the default).
+    #[default]
+    Fastest,
+    /// The lower Table II formation loss, then fewest steps: for a method whose objective
+    /// is the formation.
+    Tightest,
+    /// The lower Table II formation loss among the solved rollouts that take at most
+    /// `BUDGET` × the instance's lower bound on the makespan (the longest of the agents'
+    /// shortest routes), then fewest steps; when no rollout is that fast, the fastest. The
+    /// formation bought with at most that much time (`BUDGET` ≥ 1).
+    Within(f64),
+}
+
+impl Keep {
+    /// Every rule without a parameter with its name (`fastest`, `tightest`), as the command
+    /// line and Python spell it; `within:BUDGET` besides.
+    pub const NAMED: [(&'static str, Keep); 2] =
+        [("fastest", Keep::Fastest), ("tightest", Keep::Tightest)];
+
+    /// The planners' student's rule, wherever it is loaded by its name
+    /// ([`crate::models::load`]): the tightest of its rollouts within 1.1 × the makespan's
+    /// lower bound, else the fastest. It never keeps a plan slower than 1.1 × CBS's makespan
+    /// over a faster one (CBS's makespan is at least the lower bound); with
+    /// [`STUDENT_ROLLOUT_BAND`] it lowered the student's formation loss by 30 % on the
+    /// validation stream (docs/imitation.md, *A second band in the rollouts*).
+    pub const STUDENT: Keep = Keep::Within(1.1);
+}
+
+/// The dead band the planners' student plays its second rollout at, greedily, wherever it
+/// is loaded by its name ([`crate::Policy::rollout_band`]): 0, the team's tightest acting, which
+/// [`Keep::STUDENT`] keeps only where it costs little time.
+pub const STUDENT_ROLLOUT_BAND: f64 = 0.0;
+
+impl std::fmt::Display for Keep {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Keep::Within(budget) => write!(f, "within:{budget}"),
+            keep => {
+                let name = Keep::NAMED.iter().find(|(_, k)| k == keep).map(|(n, _)| *n);
+                f.write_str(name.expect("every rule without a parameter is named"))
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for Keep {
+    type Err = String;
+
+    fn from_str(name: &str) -> Result<Keep, String> {
+        if let Some(budget) = name.strip_prefix("within:") {
+            return match budget.parse::<f64>() {
+                Ok(b) if b.is_finite() && b >= 1.0 => Ok(Keep::Within(b)),
+                _ => Err(format!(
+                    "keep {name:?}: the budget {budget:?} is not a number of at least 1"
+                )),
+            };
+        }
+        Keep::NAMED.iter().find(|(n, _)| *n == name).map(|&(_, keep)| keep).ok_or_else(|| {
+            let names: Vec<&str> = Keep::NAMED.iter().map(|(n, _)| *n).collect();
+            format!("keep {name:?}: one of {}, within:BUDGET", names.join(", "))
+        })
+    }
+}
