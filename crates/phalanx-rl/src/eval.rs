@@ -85,6 +85,13 @@ pub struct Rollouts {
     pub keep: Option<Keep>,
 }
 
+impl Rollouts {
+    /// The random-action rate of rollout `r`: the first is greedy.
+    fn epsilon_of(&self, r: usize) -> f64 {
+        if r == 0 { 0.0 } else { self.epsilon }
+    }
+}
+
 impl Default for Rollouts {
     /// One greedy rollout.
     fn default() -> Self {
@@ -118,7 +125,7 @@ pub fn evaluate(
                 play_low_level(policy, task, second, chunk, caps, 0.0, rng, &mut second_envs)
             }
             _ => {
-                let epsilon = if r == 0 { 0.0 } else { rollouts.epsilon };
+                let epsilon = rollouts.epsilon_of(r);
                 play_low_level(policy, task, env, chunk, caps, epsilon, rng, &mut envs)
             }
         };
@@ -163,8 +170,7 @@ pub fn evaluate_hierarchy(
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut episodes = Episodes::new();
     let mut play = |chunk: &[Instance], caps: &[usize], r: usize, rng: &mut ChaCha8Rng| {
-        let epsilon = if r == 0 { 0.0 } else { rollouts.epsilon };
-        play_hierarchy(hierarchy, env, chunk, caps, epsilon, rng, &mut episodes)
+        play_hierarchy(hierarchy, env, chunk, caps, rollouts.epsilon_of(r), rng, &mut episodes)
     };
     let keep = rollouts.keep.unwrap_or_default();
     evaluate_with(&mut play, instances, batch, rollouts, keep, progress)
@@ -209,15 +215,15 @@ fn evaluate_with(
     Ok(res)
 }
 
-/// Whether `episode` is solved within the makespan budget of [`Keep::Within`] (every solved
-/// episode for the other rules).
-fn admits(keep: Keep, episode: &EvalEpisode) -> bool {
-    match keep {
-        Keep::Within(budget) => {
-            episode.success && episode.steps as f64 <= budget * f64::from(episode.lower_bound)
-        }
-        Keep::Fastest | Keep::Tightest => episode.success,
-    }
+/// The most steps a rollout of `episode`'s instance may take within the makespan budget of
+/// [`Keep::Within`] (`budget` × the lower bound).
+fn budget_steps(budget: f64, episode: &EvalEpisode) -> usize {
+    (budget * f64::from(episode.lower_bound)).floor() as usize
+}
+
+/// Whether `episode` is solved within the makespan budget of [`Keep::Within`].
+fn within(budget: f64, episode: &EvalEpisode) -> bool {
+    episode.success && episode.steps <= budget_steps(budget, episode)
 }
 
 /// The steps after which a rollout can no longer beat `kept`, the best one so far by `keep`.
@@ -226,10 +232,7 @@ fn cap(keep: Keep, kept: &EvalEpisode) -> usize {
         Keep::Fastest if kept.success => kept.steps,
         // Within the budget, a slower rollout may still be tighter; past it, only a faster
         // one counts.
-        Keep::Within(budget) if kept.success => {
-            let steps = (budget * f64::from(kept.lower_bound)).floor() as usize;
-            steps.max(kept.steps)
-        }
+        Keep::Within(budget) if kept.success => budget_steps(budget, kept).max(kept.steps),
         _ => usize::MAX,
     }
 }
@@ -238,14 +241,15 @@ fn cap(keep: Keep, kept: &EvalEpisode) -> usize {
 /// within the budget of [`Keep::Within`] before past it).
 fn better(a: &EvalEpisode, b: &EvalEpisode, keep: Keep) -> bool {
     let solved = (!a.success).cmp(&!b.success);
-    let (a_in, b_in) = (admits(keep, a), admits(keep, b));
     let steps = a.steps.cmp(&b.steps);
     let loss = a.formation_loss.total_cmp(&b.formation_loss);
     let order = match keep {
         Keep::Fastest => solved.then(steps).then(loss),
         Keep::Tightest => solved.then(loss).then(steps),
-        Keep::Within(_) if a_in && b_in => loss.then(steps),
-        Keep::Within(_) => solved.then((!a_in).cmp(&!b_in)).then(steps).then(loss),
+        Keep::Within(budget) => match (within(budget, a), within(budget, b)) {
+            (true, true) => loss.then(steps),
+            (a_in, b_in) => solved.then((!a_in).cmp(&!b_in)).then(steps).then(loss),
+        },
     };
     order.is_lt()
 }
