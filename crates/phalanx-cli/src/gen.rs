@@ -47,7 +47,7 @@ pub(crate) fn run(args: Args) -> anyhow::Result<ExitCode> {
 /// The kinds of map `phalanx gen` draws: `phalanx_env::MapKind`'s, for the command line
 /// (the environment's crate does not depend on clap).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum Kind {
+pub(crate) enum Kind {
     /// The paper's (docs/spec.md §2).
     Random,
     /// A maze (`phalanx_gen::maze`).
@@ -58,7 +58,7 @@ enum Kind {
 
 impl Kind {
     /// The environment's name for the kind.
-    fn map_kind(self) -> MapKind {
+    pub(crate) fn map_kind(self) -> MapKind {
         match self {
             Kind::Random => MapKind::Random,
             Kind::Maze => MapKind::Maze,

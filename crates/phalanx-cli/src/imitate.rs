@@ -25,7 +25,7 @@ use phalanx_rl::imitation::{self, DataConfig, Dataset, EpisodeEnd, ExpertChoice}
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::util;
+use crate::{generate, util};
 
 /// The subcommands of `phalanx imitate`.
 #[derive(Debug, Subcommand)]
@@ -41,8 +41,9 @@ pub(crate) enum ImitateCmd {
 /// `phalanx imitate expert`.
 #[derive(Debug, Args)]
 pub(crate) struct ExpertArgs {
-    /// The expert: `swarm`, `jsa:W` (joint-state A* on T + W·ΣL_f, swarm when it fails) or
-    /// `swarm-jsa:W` (swarm with joint-state A* on its local instances).
+    /// The expert: `swarm`, `cbs` (CBS, swarm when it fails), `jsa:W` (joint-state A* on
+    /// T + W·ΣL_f, swarm when it fails) or `swarm-jsa:W` (swarm with joint-state A* on its
+    /// local instances).
     #[arg(long, default_value = "swarm", value_parser = parse_expert)]
     expert: ExpertChoice,
     /// Instances per row (the evaluation stream's first ones).
@@ -87,7 +88,7 @@ pub(crate) struct DataArgs {
     /// Share of episodes with a wide team (formations from a 10×10 square).
     #[arg(long, default_value_t = 0.5, value_parser = util::fraction)]
     wide_share: f64,
-    /// The expert: `swarm`, `jsa:W` or `swarm-jsa:W` (as `imitate expert`).
+    /// The expert: `swarm`, `cbs`, `jsa:W` or `swarm-jsa:W` (as `imitate expert`).
     #[arg(long, default_value = "swarm-jsa:1", value_parser = parse_expert)]
     expert: ExpertChoice,
     /// Node limit of one expert call (of each local joint-state A* search).
@@ -99,6 +100,13 @@ pub(crate) struct DataArgs {
     /// Base seed of the training pool.
     #[arg(long, default_value_t = 0)]
     pool_seed: u64,
+    /// Side of the training pool's maps.
+    #[arg(long, default_value_t = PoolConfig::default().size)]
+    pool_size: u32,
+    /// What the training pool's maps look like: the paper's random walls, mazes of 2-cell
+    /// corridors or rooms joined by one-cell doors (formations placed anywhere on them).
+    #[arg(long, value_enum, default_value_t = generate::Kind::Random)]
+    pool_kind: generate::Kind,
 }
 
 /// `phalanx imitate check`.
@@ -117,13 +125,14 @@ pub(crate) fn run(cmd: ImitateCmd) -> anyhow::Result<ExitCode> {
     }
 }
 
-/// `swarm` or `jsa:W`.
+/// `swarm`, `cbs`, `jsa:W` or `swarm-jsa:W`.
 fn parse_expert(text: &str) -> Result<ExpertChoice, String> {
     match text.split_once(':') {
         None if text == "swarm" => Ok(ExpertChoice::Swarm),
+        None if text == "cbs" => Ok(ExpertChoice::Cbs),
         Some(("jsa", w)) => Ok(ExpertChoice::JointAStar { w: util::non_negative(w)? }),
         Some(("swarm-jsa", w)) => Ok(ExpertChoice::SwarmJointAStar { w: util::non_negative(w)? }),
-        _ => Err(format!("{text:?} is not an expert (swarm, jsa:W or swarm-jsa:W)")),
+        _ => Err(format!("{text:?} is not an expert (swarm, cbs, jsa:W or swarm-jsa:W)")),
     }
 }
 
@@ -236,7 +245,13 @@ fn expert(args: &ExpertArgs) -> anyhow::Result<ExitCode> {
 fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(args.episodes > 0, "--episodes 0: there is nothing to write");
     let config = DataConfig {
-        pool: PoolConfig { n_maps: args.pool_maps, seed: args.pool_seed, ..PoolConfig::default() },
+        pool: PoolConfig {
+            n_maps: args.pool_maps,
+            seed: args.pool_seed,
+            size: args.pool_size,
+            kind: args.pool_kind.map_kind(),
+            ..PoolConfig::default()
+        },
         agents: args.agents.clone(),
         episodes: args.episodes,
         seed: args.seed,
@@ -279,7 +294,7 @@ fn data(args: &DataArgs) -> anyhow::Result<ExitCode> {
         ("steps", data.n_steps().to_string()),
         ("samples", samples.to_string()),
         ("expert plans", stats.expert.replans.to_string()),
-        ("joint-state A* fallbacks to swarm", stats.expert.fallbacks.to_string()),
+        ("joint-state A* or CBS fallbacks to swarm", stats.expert.fallbacks.to_string()),
         ("expert seconds planning", format!("{:.1}", stats.expert.plan_seconds)),
         ("expert calls past the time limit", stats.expert.timeouts.to_string()),
         ("bytes", bytes.len().to_string()),

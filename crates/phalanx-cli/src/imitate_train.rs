@@ -4,8 +4,9 @@
 //!
 //! The run folder holds:
 //! - `config.json`, the run's `ImitationConfig`;
-//! - `data-0.bin` (the expert's data) and `data-K.bin` (round K's student rollouts, labelled
-//!   by the expert), each written atomically once and read again on resume;
+//! - `data-0.bin` (the expert's data), `data-0-K.bin` (the `more_data` sets) and `data-K.bin`
+//!   (round K's student rollouts, labelled by the expert), each written atomically once and
+//!   read again on resume;
 //! - `checkpoint` (learner, optimiser, RNG, counters) every `checkpoint_every` updates and
 //!   at the end of every round; `round-K.bin`, the policy at the end of round K;
 //! - `validation.jsonl`, one line per round (and, with `validate_every`, one per that many
@@ -110,13 +111,16 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
     let mut samples = 0;
     let mut best = read_best(dir)?;
-    // A fine-tuning alone (no cloning update, no round) needs no expert data.
-    let cloning = config.round_end(config.rounds) > 0;
+    // A fine-tuning alone (no cloning update, no round) needs no expert data, unless it
+    // clones beside its policy gradient.
+    let cloning = config.round_end(config.rounds) > 0
+        || config.finetune.as_ref().is_some_and(|it| it.cloning > 0.0);
     for round in (0..=config.rounds).filter(|_| cloning) {
         let end = config.round_end(round);
-        let data = round_data(&config, dir, round, &learner, !args.resume)?;
-        samples += add_to_learner(&mut learner, &data)
-            .with_context(|| format!("the data of round {round}"))?;
+        for data in round_data(&config, dir, round, &learner, !args.resume)? {
+            samples += add_to_learner(&mut learner, &data)
+                .with_context(|| format!("the data of round {round}"))?;
+        }
         let before = learner.counters().updates;
         if before >= end {
             // A round of no updates (DAgger rounds on a student warm-started with `init_from`
@@ -339,6 +343,10 @@ fn finetune(
             (metrics::POLICY_LOSS, f64::from(stats.policy_loss)),
             (metrics::GRAD_NORM, f64::from(stats.grad_norm)),
         ];
+        let values = values
+            .into_iter()
+            .chain(stats.cloning_loss.map(|it| (metrics::IMITATION_LOSS, f64::from(it))))
+            .collect();
         let message = format!(
             "| fine-tuning, {} agents on {}²: success {:.2}, steps {:.1}, loss {:.2}",
             stats.n_agents, stats.side, stats.success, stats.steps, stats.formation_loss
@@ -418,9 +426,9 @@ fn save(learner: &Learner, dir: &Path, sink: &mut Metrics) -> anyhow::Result<()>
     util::written(learner.save(&checkpoint), &checkpoint)
 }
 
-/// Removes what a previous run in `dir` left of its rounds (a fresh run keeps only
-/// `data-0.bin`, which [`round_data`] reads again when it was made with this run's data
-/// settings: the same settings make the same expert data).
+/// Removes what a previous run in `dir` left of its rounds (a fresh run keeps only the
+/// expert data, `data-0.bin` and `data-0-K.bin`, which [`round_data`] reads again when it
+/// was made with this run's data settings: the same settings make the same expert data).
 fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
     let entries = fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
     for entry in entries {
@@ -429,7 +437,9 @@ fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
         let stale = name == "validation.jsonl"
             || name.strip_prefix("round-").is_some_and(|it| it.ends_with(".bin"))
             || name.strip_prefix("update-").is_some_and(|it| it.ends_with(".bin"))
-            || name.strip_prefix("data-").is_some_and(|it| it != "0.bin" && it.ends_with(".bin"));
+            || name
+                .strip_prefix("data-")
+                .is_some_and(|it| it.ends_with(".bin") && it != "0.bin" && !it.starts_with("0-"));
         if stale {
             util::written(fs::remove_file(&path), &path)?;
         }
@@ -445,29 +455,50 @@ fn read_config(path: &Path) -> anyhow::Result<ImitationConfig> {
         .map_err(|err| anyhow::anyhow!("parsing config {}: {err}", path.display()))
 }
 
-/// Round `round`'s data: read from `DIR/data-K.bin` when it is there and holds the episodes
-/// of this run's settings (`DataConfig::same_episodes`: observation settings aside), else
-/// generated (round 0: the expert's rollouts; round K: the student's, labelled by the
-/// expert) and written atomically. A file of other settings, or one that cannot be read, is
-/// refused in a resumed run and replaced in a `fresh` one.
+/// Round `round`'s data: round 0's expert data (`data-0.bin`, then `data-0-K.bin` for the
+/// `more_data` sets), or round K's student rollouts labelled by the expert (`data-K.bin`).
 fn round_data(
     config: &ImitationConfig,
     dir: &Path,
     round: u32,
     learner: &Learner,
     fresh: bool,
-) -> anyhow::Result<Dataset> {
+) -> anyhow::Result<Vec<Dataset>> {
     let path = dir.join(format!("data-{round}.bin"));
-    let expected = if round == 0 {
-        config.data.clone()
-    } else {
+    if round > 0 {
         let previous = dir.join(format!("round-{}.bin", round - 1));
         let network =
             network_checksum(&previous).with_context(|| format!("the student of round {round}"))?;
-        config.round_data(round, network)
-    };
+        let expected = config.round_data(round, network);
+        anyhow::ensure!(
+            path.exists() || learner.counters().updates <= config.round_end(round - 1),
+            "{}: missing, and the checkpoint is past the round that made it",
+            path.display()
+        );
+        let student = learner.policy();
+        return Ok(vec![data_file(&path, expected, Some(&student), fresh, round)?]);
+    }
+    let more = config.more_data.iter().enumerate();
+    std::iter::once((path, config.data.clone()))
+        .chain(more.map(|(k, set)| (dir.join(format!("data-0-{}.bin", k + 1)), set.clone())))
+        .map(|(path, expected)| data_file(&path, expected, None, fresh, round))
+        .collect()
+}
+
+/// A data file: read from `path` when it is there and holds the episodes of `expected`
+/// (`DataConfig::same_episodes`: observation settings aside), else generated (the expert's
+/// rollouts, or `student`'s labelled by the expert) and written atomically. A file of other
+/// settings, or one that cannot be read, is refused in a resumed run and replaced in a
+/// `fresh` one.
+fn data_file(
+    path: &Path,
+    expected: imitation::DataConfig,
+    student: Option<&Policy>,
+    fresh: bool,
+    round: u32,
+) -> anyhow::Result<Dataset> {
     if path.exists() {
-        let read = fs::read(&path)
+        let read = fs::read(path)
             .map_err(anyhow::Error::from)
             .and_then(|bytes| Dataset::from_bytes(&bytes).map_err(anyhow::Error::from));
         match read {
@@ -485,18 +516,12 @@ fn round_data(
             Err(err) => return Err(err.context(format!("reading {}", path.display()))),
         }
     }
-    anyhow::ensure!(
-        round == 0 || learner.counters().updates <= config.round_end(round - 1),
-        "{}: missing, and the checkpoint is past the round that made it",
-        path.display()
-    );
-    let what = if round == 0 { "expert episodes" } else { "student episodes" };
+    let what = if student.is_none() { "expert episodes" } else { "student episodes" };
     let bar = util::bar(expected.episodes, what);
-    let student: Option<Policy> = (round > 0).then(|| learner.policy());
-    let (data, _) = imitation::generate_with(&expected, student.as_ref(), &|n| bar.inc(n))
+    let (data, _) = imitation::generate_with(&expected, student, &|n| bar.inc(n))
         .with_context(|| format!("the data of round {round}"))?;
     bar.finish_and_clear();
-    util::written(phalanx_io::write_bytes(&path, &data.to_bytes()), &path)?;
+    util::written(phalanx_io::write_bytes(path, &data.to_bytes()), path)?;
     Ok(data)
 }
 

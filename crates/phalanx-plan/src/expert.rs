@@ -8,8 +8,8 @@
 //! plan's positions at that index, the next step is read from the plan; when they are not
 //! (the student left the plan), the expert re-plans from the current joint state. The
 //! planner is SWARM-MAPF-R ([`crate::swarm`]) or, where it is fast, joint-state A\* on
-//! `T + w·Σ L_f` ([`crate::joint_astar`]) with SWARM-MAPF-R as the fallback when it runs
-//! out of nodes.
+//! `T + w·Σ L_f` ([`crate::joint_astar`]) or CBS ([`crate::cbs`]), with SWARM-MAPF-R as
+//! the fallback when those run out of nodes.
 //!
 //! Calls are deterministic as long as no time limit fires: the node limits decide, and the
 //! time limit is only a safety net (a call that hits it is counted in
@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 use phalanx_core::{Action, Cell, Grid, Instance, InstanceError, Plan};
 
+use crate::cbs::{self, CbsConfig};
 use crate::joint_astar::{self, JointAStarConfig, Objective};
 use crate::swarm::{self, SwarmConfig};
 use crate::{Budget, PlanFailure};
@@ -35,6 +36,12 @@ pub enum ExpertPlanner {
         /// The loss weight `w`.
         w: f64,
     },
+    /// CBS (`CbsConfig::default()`: sum-of-costs optimal, formation ignored) under
+    /// [`ExpertConfig::node_limit`], then SWARM-MAPF-R when it fails: the expert of maps
+    /// whose corridors no formation fits (mazes, rooms), where SWARM-MAPF-R's rigid moves
+    /// mostly run past the step limit and joint-state A\* costs seconds a plan
+    /// (docs/imitation.md, *Corridors*).
+    Cbs,
 }
 
 /// Settings of the expert.
@@ -106,7 +113,7 @@ pub struct ExpertStats {
     pub replans: u64,
     /// Planner calls with no plan.
     pub failures: u64,
-    /// Joint-state A\* calls that failed and fell back to SWARM-MAPF-R.
+    /// Joint-state A\* or CBS calls that failed and fell back to SWARM-MAPF-R.
     pub fallbacks: u64,
     /// Planner calls that hit the time limit.
     pub timeouts: u64,
@@ -197,17 +204,25 @@ impl Expert {
             time_limit: Some(self.config.time_limit),
             node_limit: Some(self.config.node_limit),
         };
-        if let ExpertPlanner::JointAStar { w } = self.config.planner {
-            let config = JointAStarConfig::with_objective(Objective::Weighted(w));
-            match joint_astar::solve(&instance, &config, &budget).result {
-                Ok(plan) => return Ok(plan),
-                Err(failure) => {
-                    self.stats.fallbacks += 1;
-                    if failure == PlanFailure::Timeout {
-                        self.stats.timeouts += 1;
-                    }
+        let first = match self.config.planner {
+            ExpertPlanner::Swarm => None,
+            ExpertPlanner::JointAStar { w } => {
+                let config = JointAStarConfig::with_objective(Objective::Weighted(w));
+                Some(joint_astar::solve(&instance, &config, &budget).result)
+            }
+            ExpertPlanner::Cbs => {
+                Some(cbs::solve(&instance, &CbsConfig::default(), &budget).result)
+            }
+        };
+        match first {
+            Some(Ok(plan)) => return Ok(plan),
+            Some(Err(failure)) => {
+                self.stats.fallbacks += 1;
+                if failure == PlanFailure::Timeout {
+                    self.stats.timeouts += 1;
                 }
             }
+            None => {}
         }
         match swarm::solve(&instance, &self.config.swarm, &budget).result {
             Ok(plan) => Ok(plan),

@@ -61,6 +61,9 @@ pub enum ExpertChoice {
         /// The loss weight `w`.
         w: f64,
     },
+    /// CBS, SWARM-MAPF-R when it runs out of nodes: formation ignored, the expert of mazes
+    /// and rooms (`ExpertPlanner::Cbs`).
+    Cbs,
 }
 
 impl ExpertChoice {
@@ -70,6 +73,7 @@ impl ExpertChoice {
         match self {
             ExpertChoice::Swarm => {}
             ExpertChoice::JointAStar { w } => config.planner = ExpertPlanner::JointAStar { w },
+            ExpertChoice::Cbs => config.planner = ExpertPlanner::Cbs,
             ExpertChoice::SwarmJointAStar { w } => {
                 config.swarm.sub_solver = SubSolver::JointAStar { w };
                 config.swarm.jsa_node_limit = node_limit;

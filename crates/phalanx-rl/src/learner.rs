@@ -49,6 +49,17 @@ pub struct ImitationStats {
     pub grad_norm: f32,
 }
 
+/// What one policy-gradient update ([`Learner::policy_gradient_update_on`]) reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PolicyGradientStats {
+    /// The policy-gradient loss, `−Σ A_b log π(a | s)` over the filled rows.
+    pub loss: f32,
+    /// The behaviour-cloning loss of the expert batch, when the update had one.
+    pub cloning_loss: Option<f32>,
+    /// Global gradient norm before clipping.
+    pub grad_norm: f32,
+}
+
 /// The learner: online and target networks, optimiser, replay, counters and RNG.
 pub struct Learner {
     pub(crate) net_config: QNetConfig,
@@ -233,12 +244,18 @@ impl Learner {
     /// averaged over filled rows; global-norm clipping, Adam. The target network follows the
     /// online one (cloning has no bootstrap).
     pub fn imitation_update_on(&mut self, batch: &Batch) -> ImitationStats {
+        let (loss, accuracy) = self.cloning_loss(batch);
+        let (loss, grad_norm) = self.descend(loss);
+        ImitationStats { loss, accuracy, grad_norm }
+    }
+
+    /// The behaviour-cloning loss of `batch` (the mean cross-entropy of its labels over the
+    /// filled rows, `[1]`) and the share of filled rows whose greedy action is the label.
+    fn cloning_loss(&self, batch: &Batch) -> (Tensor<1>, f32) {
         let (chosen, filled, correct) = self.label_log_probs(batch, 1.0);
         let n_filled = filled.iter().sum::<f32>().max(1.0);
         let filled = tensor2(filled, [batch.batch * batch.n_agents, batch.len], &self.device);
-        let loss = (chosen * filled).sum().neg().div_scalar(n_filled); // [1]
-        let (loss, grad_norm) = self.descend(loss);
-        ImitationStats { loss, accuracy: correct / n_filled, grad_norm }
+        ((chosen * filled).sum().neg().div_scalar(n_filled), correct / n_filled) // [1]
     }
 
     /// One policy-gradient update of the student on its own episodes `batch` (whose actions
@@ -246,7 +263,10 @@ impl Learner {
     /// [`crate::Policy::set_sampling`]), each sequence `b` weighted by `advantages[b]`:
     /// `−Σ A_b log π(a | s)` over the filled rows, divided by their count (`π` the softmax at
     /// `temperature`, each agent's message holding the actions of the agents ranked before
-    /// it); global-norm clipping, one Adam step. Returns that loss and the gradient norm.
+    /// it); with `cloning` above 0, plus `cloning` times the behaviour-cloning loss of a
+    /// batch drawn from the buffers (the expert data, as [`Learner::imitation_update`] draws
+    /// it; none while they are empty), so that what the expert taught on states the
+    /// rollouts do not visit is kept; global-norm clipping, one Adam step.
     ///
     /// # Panics
     /// If `advantages` has not one value per sequence.
@@ -255,7 +275,8 @@ impl Learner {
         batch: &Batch,
         advantages: &[f32],
         temperature: f32,
-    ) -> (f32, f32) {
+        cloning: f32,
+    ) -> PolicyGradientStats {
         assert_eq!(advantages.len(), batch.batch, "one advantage per sequence");
         let (chosen, filled, _) = self.label_log_probs(batch, temperature);
         let n_filled = filled.iter().sum::<f32>().max(1.0);
@@ -264,7 +285,16 @@ impl Learner {
             filled.iter().enumerate().map(|(i, &f)| f * advantages[i / rows_per_seq]).collect();
         let weights = tensor2(weights, [batch.batch * batch.n_agents, batch.len], &self.device);
         let loss = (chosen * weights).sum().neg().div_scalar(n_filled); // [1]
-        self.descend(loss)
+        let expert = if cloning > 0.0 { self.sample() } else { None };
+        let Some(expert) = expert else {
+            let (loss, grad_norm) = self.descend(loss);
+            return PolicyGradientStats { loss, cloning_loss: None, grad_norm };
+        };
+        let policy_loss = to_vec(loss.clone().detach())[0];
+        let (cloning_loss, _) = self.cloning_loss(&expert);
+        let (_, grad_norm) = self.descend(loss + cloning_loss.clone().mul_scalar(cloning));
+        let cloning_loss = Some(to_vec(cloning_loss.detach())[0]);
+        PolicyGradientStats { loss: policy_loss, cloning_loss, grad_norm }
     }
 
     /// A fresh Adam (the moments of the updates so far forgotten) at learning rate `lr`: the

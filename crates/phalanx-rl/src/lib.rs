@@ -70,7 +70,10 @@ pub use hierarchy::{
     ScriptedMeta,
 };
 pub use keep::{Keep, STUDENT_ROLLOUT_BAND};
-pub use learner::{Counters, EpsilonSchedule, ImitationStats, Learner, LearnerConfig, UpdateStats};
+pub use learner::{
+    Counters, EpsilonSchedule, ImitationStats, Learner, LearnerConfig, PolicyGradientStats,
+    UpdateStats,
+};
 pub use meta_env::{MetaEnv, MetaEnvConfig};
 pub use net::{EncoderConfig, NetConfigError, QNet, QNetConfig, RecurrentState};
 pub use policy::{Policy, RecurrentStateError};

@@ -7,11 +7,14 @@ use std::process::Output;
 
 use super::{check, learning, phalanx};
 
-/// A tiny run: a few 16² pool maps, teams of 3, the fast expert, two DAgger rounds, no
-/// fine-tuning, validation on the 20² rows only.
+/// A tiny run: a few 16² pool maps, teams of 3, the fast expert, two episodes on 16² mazes
+/// labelled by CBS beside them, two DAgger rounds, no fine-tuning, validation on the 20²
+/// rows only.
 pub(crate) const CONFIG: &str = r#"{
     "data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4, "seed": 2,
              "expert": "swarm"},
+    "more_data": [{"pool": {"n_maps": 2, "size": 16, "kind": "maze"}, "expert": "cbs",
+                   "episodes": 2}],
     "batch_size": 2, "updates": 5, "rounds": 2, "round_episodes": 2, "round_updates": 4,
     "checkpoint_every": 3, "validation_maps": 1, "validation_max_side": 20, "finetune": null
 }"#;
@@ -36,7 +39,8 @@ fn an_imitation_run_stopped_anywhere_resumes_exactly() {
     }
     let run = |name: &str| d.join(name);
     assert_eq!(learning(&run("parts")), learning(&run("whole")), "the metrics differ");
-    for file in ["data-0.bin", "data-1.bin", "data-2.bin", "policy.bin", "round-2.bin"] {
+    let files = ["data-0.bin", "data-0-1.bin", "data-1.bin", "data-2.bin", "policy.bin"];
+    for file in files.into_iter().chain(["round-2.bin"]) {
         let read = |name: &str| std::fs::read(run(name).join(file)).unwrap();
         assert!(read("parts") == read("whole"), "{file} differs");
     }
@@ -199,6 +203,18 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let (stdout, _) = check(&phalanx(d, &args), 0);
     assert!(stdout.contains("2 of 2"), "{stdout}");
     assert!(!d.join("alone/data-0.bin").exists(), "no expert data for a fine-tuning alone");
+    // With a cloning term, the fine-tuning alone makes and clones the expert data too.
+    let data = r#"{"data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4,
+        "seed": 2, "expert": "swarm"}, "#;
+    let cloning =
+        alone.replace(r#""team_deadband": 0.5"#, r#""cloning": 0.5"#).replacen('{', data, 1);
+    std::fs::write(d.join("cloning.json"), cloning).unwrap();
+    let args = ["train", "imitation", "--config", "cloning.json", "--out", "cloning"];
+    check(&phalanx(d, &args), 0);
+    assert!(read("cloning", "data-0.bin") == read("whole", "data-0.bin"), "not the expert data");
+    let metrics = String::from_utf8(read("cloning", "metrics.jsonl")).unwrap();
+    let cloned = metrics.lines().filter(|l| l.contains("losses/imitation_loss")).count();
+    assert_eq!(cloned, 2, "one cloning loss per iteration");
     let header = String::from_utf8_lossy(&read("alone", "policy.bin")).into_owned();
     assert!(header.contains(r#""team_deadband": 0.5"#), "the band is not in the policy file");
     // The cloning at the data's (default) band, the fine-tuning at its own (0.6 by default).

@@ -63,6 +63,7 @@ fn first_steps_from_arbitrary_joint_states_form_valid_plans() {
         (ExpertPlanner::Swarm, 2, 4),
         (ExpertPlanner::Swarm, 3, 5),
         (ExpertPlanner::JointAStar { w: 1.0 }, 4, 2),
+        (ExpertPlanner::Cbs, 5, 4),
     ];
     for (planner, seed, n_agents) in runs {
         let config = ExpertConfig { planner, ..ExpertConfig::default() };

@@ -57,6 +57,17 @@ pub struct FinetuneConfig {
     /// default 1.5 and fine-tuned at 0.6 with `step_cost` 2 (docs/imitation.md, *The dead
     /// band in fine-tuning*, *A dearer step at a narrower band*).
     pub team_deadband: Option<f64>,
+    /// Weight of a behaviour-cloning term in every update: the cross-entropy of a batch of
+    /// the run's expert data (cloning data, `more_data` and rounds, drawn as a cloning update
+    /// draws it) added to the policy-gradient loss, so that the fine-tuning keeps what the
+    /// expert taught where its rollouts do not go (the mazes of `more_data` when the pools
+    /// are the paper's). Default 0: none, as the shipped student.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub cloning: f64,
+}
+
+fn is_zero(value: &f64) -> bool {
+    *value == 0.0
 }
 
 impl Default for FinetuneConfig {
@@ -80,6 +91,7 @@ impl Default for FinetuneConfig {
             min_spread: 0.02,
             seed: 1,
             team_deadband: Some(0.6),
+            cloning: 0.0,
         }
     }
 }
@@ -105,10 +117,11 @@ impl FinetuneConfig {
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(format!("finetune.lr: {} is not positive", self.lr));
         }
-        let finite = [self.wide_share, self.step_cost, self.fail_cost, self.min_spread];
+        let finite =
+            [self.wide_share, self.step_cost, self.fail_cost, self.min_spread, self.cloning];
         if finite.iter().any(|v| !(v.is_finite() && *v >= 0.0)) || self.min_spread == 0.0 {
-            return Err("finetune: wide_share, step_cost and fail_cost must be 0 or more, \
-                        min_spread more than 0"
+            return Err("finetune: wide_share, step_cost, fail_cost and cloning must be 0 or \
+                        more, min_spread more than 0"
                 .into());
         }
         if let Some(cells) = self.team_deadband {
@@ -137,8 +150,10 @@ pub struct IterationStats {
     pub formation_loss: f64,
     /// Mean return.
     pub ret: f64,
-    /// The update's loss.
+    /// The update's policy-gradient loss.
     pub policy_loss: f32,
+    /// The update's behaviour-cloning loss ([`FinetuneConfig::cloning`]).
+    pub cloning_loss: Option<f32>,
     /// Gradient norm before clipping.
     pub grad_norm: f32,
 }
@@ -201,8 +216,12 @@ impl Finetune {
         let advantages = group_advantages(&returns, cfg.rollouts, cfg.min_spread);
         let episodes: Vec<&Episode> = played.iter().map(|p| &p.episode).collect();
         let batch = Batch::of_episodes(&episodes, n, learner_shape(learner));
-        let (policy_loss, grad_norm) =
-            learner.policy_gradient_update_on(&batch, &advantages, cfg.temperature);
+        let update = learner.policy_gradient_update_on(
+            &batch,
+            &advantages,
+            cfg.temperature,
+            cfg.cloning as f32,
+        );
         let count = played.len() as f64;
         IterationStats {
             n_agents: n,
@@ -213,8 +232,9 @@ impl Finetune {
                 / count
                 / f64::from(side),
             ret: returns.iter().sum::<f64>() / count,
-            policy_loss,
-            grad_norm,
+            policy_loss: update.loss,
+            cloning_loss: update.cloning_loss,
+            grad_norm: update.grad_norm,
         }
     }
 
@@ -359,6 +379,48 @@ mod tests {
     }
 
     #[test]
+    fn the_cloning_term_draws_on_the_expert_data_and_is_off_at_zero() {
+        let mut config = ImitationConfig::default();
+        config.data.pool = PoolConfig { n_maps: 2, size: 16, ..PoolConfig::default() };
+        config.data.agents = vec![3];
+        config.data.episodes = 2;
+        config.data.expert = crate::imitation::ExpertChoice::Swarm;
+        let settings = FinetuneConfig {
+            pools: vec![config.data.pool.clone()],
+            agents: vec![3],
+            instances: 1,
+            rollouts: 2,
+            ..FinetuneConfig::default()
+        };
+        let with = |cloning: f64| {
+            let settings = FinetuneConfig { cloning, ..settings.clone() };
+            Finetune::new(settings, config.data.env.clone()).unwrap()
+        };
+        let data = crate::imitation::generate(&config.data, &|_| {}).unwrap().0;
+        let mut expert = learner(&config);
+        crate::imitation::learn::add_to_learner(&mut expert, &data).unwrap();
+        let cloned = with(1.0).iteration(&mut expert, 0);
+        assert!(cloned.cloning_loss.is_some_and(|l| l.is_finite() && l > 0.0), "{cloned:?}");
+        // The rollouts are the same; the update is not.
+        let mut plain = learner(&config);
+        let alone = with(0.0).iteration(&mut plain, 0);
+        assert_eq!((alone.cloning_loss, alone.ret), (None, cloned.ret));
+        let instance = with(0.0).pools[0].sample(3, &mut ChaCha8Rng::seed_from_u64(1));
+        let env = &config.data.env;
+        let scores = |l: &Learner| first_scores(&l.policy(), env, &instance);
+        assert_ne!(scores(&expert), scores(&plain), "the cloning term changed nothing");
+        // At 0 the data is not drawn on; without data there is no term.
+        let mut unused = learner(&config);
+        crate::imitation::learn::add_to_learner(&mut unused, &data).unwrap();
+        assert_eq!(with(0.0).iteration(&mut unused, 0), alone);
+        assert_eq!(scores(&unused), scores(&plain));
+        let mut empty = learner(&config);
+        assert_eq!(with(1.0).iteration(&mut empty, 0), alone);
+        let bad = FinetuneConfig { cloning: -1.0, ..settings };
+        assert!(Finetune::new(bad, env.clone()).is_err_and(|err| err.contains("cloning")));
+    }
+
+    #[test]
     fn a_positive_advantage_makes_the_taken_actions_likelier_and_a_negative_one_rarer() {
         let config = ImitationConfig::default();
         let env = config.data.env.clone();
@@ -388,7 +450,7 @@ mod tests {
         for (advantage, likelier) in [(1.0, true), (-1.0, false)] {
             let mut it = learner(&config);
             for _ in 0..3 {
-                it.policy_gradient_update_on(&batch, &[advantage], 1.0);
+                it.policy_gradient_update_on(&batch, &[advantage], 1.0, 0.0);
             }
             assert_eq!(
                 prob(&it) > start,

@@ -32,6 +32,15 @@ use crate::replay::{Episode, SequenceMode};
 pub struct ImitationConfig {
     /// The cloning data: expert episodes on the training pool (teams of 3 to 8 by default).
     pub data: DataConfig,
+    /// More expert data cloned beside `data` from round 0 on, each set its own file
+    /// (`data-0-K.bin`, K from 1): episodes of other pools (mazes, rooms, the user's maps)
+    /// labelled by the expert that suits them. An object in a settings file is read over
+    /// `data`, field by field (`{"pool": {"kind": "maze"}, "expert": "cbs", "seed": 7}`
+    /// keeps `data`'s environment and team sizes). Batches take the team sizes in turn and,
+    /// within one, episodes uniformly: a set's share of the batches is its share of the
+    /// episodes of its team sizes. Not written when empty.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub more_data: Vec<DataConfig>,
     /// The student's network (five actions, the goal and place vectors, 8 agent slots).
     pub net: QNetConfig,
     /// Adam's learning rate.
@@ -115,6 +124,7 @@ impl Default for ImitationConfig {
             validation_seed: 1,
             validation_max_side: None,
             finetune: Some(FinetuneConfig::default()),
+            more_data: Vec::new(),
         }
     }
 }
@@ -133,13 +143,24 @@ impl ImitationConfig {
             serde_json::from_str(text).map_err(|err| format!("{err}"))?;
         let given: serde_json::Value =
             serde_json::from_str(text).map_err(|err| format!("{err}"))?;
-        if let Some(fields) = given.get("data").and_then(|it| it.as_object()) {
-            let mut data = serde_json::to_value(ImitationConfig::default().data)
-                .map_err(|err| format!("data: {err}"))?;
+        let over = |base: &DataConfig, fields: &serde_json::Map<String, serde_json::Value>| {
+            let mut data = serde_json::to_value(base).map_err(|err| format!("{err}"))?;
             for (key, value) in fields {
                 data[key] = value.clone();
             }
-            config.data = serde_json::from_value(data).map_err(|err| format!("data: {err}"))?;
+            serde_json::from_value::<DataConfig>(data).map_err(|err| format!("{err}"))
+        };
+        if let Some(fields) = given.get("data").and_then(|it| it.as_object()) {
+            config.data = over(&ImitationConfig::default().data, fields)
+                .map_err(|err| format!("data: {err}"))?;
+        }
+        // Parsed above, so every set is an object.
+        let sets = given.get("more_data").and_then(|it| it.as_array()).into_iter().flatten();
+        for (k, (set, given)) in config.more_data.iter_mut().zip(sets).enumerate() {
+            if let Some(fields) = given.as_object() {
+                *set =
+                    over(&config.data, fields).map_err(|err| format!("more_data[{k}]: {err}"))?;
+            }
         }
         config.check()?;
         Ok(config)
@@ -172,6 +193,26 @@ impl ImitationConfig {
         }
         if let Some(&n) = self.data.agents.iter().find(|&&n| n == 0 || n > net.n_agents_max) {
             return Err(format!("data.agents: {n} agents do not fit {} slots", net.n_agents_max));
+        }
+        for (k, more) in self.more_data.iter().enumerate() {
+            if more.env != self.data.env || more.leader_rule != self.data.leader_rule {
+                return Err(format!(
+                    "more_data[{k}]: its env and leader_rule must be data's (the student reads \
+                     one kind of observation)"
+                ));
+            }
+            if more.student.is_some() || more.episodes == 0 {
+                return Err(format!(
+                    "more_data[{k}]: expert data of at least one episode (no student)"
+                ));
+            }
+            if let Some(n) = more.agents.iter().find(|n| !self.data.agents.contains(n)) {
+                return Err(format!(
+                    "more_data[{k}].agents: the student trains teams of {:?} (data.agents), \
+                     not {n}",
+                    self.data.agents
+                ));
+            }
         }
         if self.data.leader_rule != self.data.env.task.leader_rule() {
             return Err(format!(
@@ -470,6 +511,30 @@ mod tests {
         assert_eq!((config.data.agents, config.data.episodes), (vec![3], 9));
         assert_eq!(config.data.env, default.data.env);
         assert!(ImitationConfig::from_json(r#"{"data": {"sed": 7}}"#).unwrap_err().contains("sed"));
+    }
+
+    #[test]
+    fn more_data_is_read_over_the_data_and_checked() {
+        let given = r#"{"data": {"agents": [3, 4], "seed": 5},
+                        "more_data": [{"pool": {"kind": "maze"}, "expert": "cbs", "seed": 9}]}"#;
+        let config = ImitationConfig::from_json(given).unwrap();
+        let [maze] = config.more_data.as_slice() else { panic!("one set") };
+        let pool = PoolConfig { kind: phalanx_env::MapKind::Maze, ..PoolConfig::default() };
+        let expected =
+            DataConfig { pool, expert: ExpertChoice::Cbs, seed: 9, ..config.data.clone() };
+        assert_eq!(maze, &expected, "the fields not given are data's");
+        let round_trip = serde_json::to_string(&config).unwrap();
+        assert_eq!(ImitationConfig::from_json(&round_trip).unwrap(), config);
+        let none = serde_json::to_string(&ImitationConfig::default()).unwrap();
+        assert!(!none.contains("more_data"), "not written when empty");
+        let bad = |text: &str| ImitationConfig::from_json(text).unwrap_err();
+        assert!(bad(r#"{"more_data": [3]}"#).contains("expected struct DataConfig at line 1"));
+        assert!(bad(r#"{"more_data": [{"sed": 1}]}"#).contains("unknown field `sed`"));
+        let wider = bad(r#"{"data": {"agents": [3]}, "more_data": [{"agents": [3, 4]}]}"#);
+        assert!(wider.starts_with("more_data[0].agents: the student trains teams of [3]"));
+        let env = bad(r#"{"more_data": [{}, {"env": {"fov": 7}}]}"#);
+        assert!(env.starts_with("more_data[1]: its env"), "{env}");
+        assert!(bad(r#"{"more_data": [{"episodes": 0}]}"#).contains("at least one episode"));
     }
 
     #[test]
