@@ -26,7 +26,7 @@ use burn::tensor::Device;
 use phalanx_core::{Instance, PlanMetrics};
 use phalanx_env::Task;
 use phalanx_eval::Case;
-use phalanx_rl::imitation::finetune::{Finetune, FinetuneConfig};
+use phalanx_rl::imitation::finetune::{CloningData, Finetune, FinetuneConfig};
 use phalanx_rl::imitation::learn::{ImitationConfig, add_to_learner};
 use phalanx_rl::imitation::{self, Dataset};
 use phalanx_rl::policy_file::network_checksum;
@@ -113,13 +113,19 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let mut best = read_best(dir)?;
     // A fine-tuning alone (no cloning update, no round) needs no expert data, unless it
     // clones beside its policy gradient.
+    // Round 0's `more_data` sets, the default data of the fine-tuning's cloning term.
+    let mut more = Vec::new();
     let cloning = config.round_end(config.rounds) > 0
         || config.finetune.as_ref().is_some_and(|it| it.cloning > 0.0);
     for round in (0..=config.rounds).filter(|_| cloning) {
         let end = config.round_end(round);
-        for data in round_data(&config, dir, round, &learner, !args.resume)? {
-            samples += add_to_learner(&mut learner, &data)
+        let sets = round_data(&config, dir, round, &learner, !args.resume)?;
+        for data in &sets {
+            samples += add_to_learner(&mut learner, data)
                 .with_context(|| format!("the data of round {round}"))?;
+        }
+        if round == 0 {
+            more = sets.into_iter().skip(1).collect();
         }
         let before = learner.counters().updates;
         if before >= end {
@@ -172,7 +178,8 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     if let Some(settings) = &config.finetune
         && (config.round_end(config.rounds)..stop).contains(&learner.counters().updates)
     {
-        finetune(&config, settings, &mut learner, stop, &validation, dir, &mut sink)?;
+        let run = Finetuning { settings, more: &more, validation: &validation, dir };
+        finetune(&config, &run, &mut learner, stop, &mut sink)?;
     }
     let counters = learner.counters();
     let best = match best {
@@ -315,17 +322,33 @@ fn make_policy(snapshot: &Path, dir: &Path) -> anyhow::Result<()> {
 /// its learning rate. Snapshots every `validate_every` updates are validated (logged, not
 /// chosen from); at its end the fine-tuned network, `finetune.bin`, is `policy.bin`.
 #[allow(clippy::too_many_arguments)]
+/// What a fine-tuning runs with.
+struct Finetuning<'a> {
+    settings: &'a FinetuneConfig,
+    /// Round 0's `more_data` sets.
+    more: &'a [Dataset],
+    validation: &'a [(String, Vec<Instance>)],
+    dir: &'a Path,
+}
+
 fn finetune(
     config: &ImitationConfig,
-    finetune: &FinetuneConfig,
+    run: &Finetuning<'_>,
     learner: &mut Learner,
     stop: u64,
-    validation: &[(String, Vec<Instance>)],
-    dir: &Path,
     sink: &mut Metrics,
 ) -> anyhow::Result<()> {
+    let Finetuning { settings: finetune, validation, dir, .. } = *run;
     let (start, total) =
         (config.round_end(config.rounds), config.total_updates().expect("checked"));
+    if finetune.cloning > 0.0 && finetune.cloning_data == CloningData::More {
+        // The cloning term draws on these only; the same buffers whether the run goes on
+        // from its cloning or resumes inside the fine-tuning.
+        learner.clear_replays();
+        for data in run.more {
+            add_to_learner(learner, data).context("the more_data of the cloning term")?;
+        }
+    }
     let run = Finetune::new(finetune.clone(), config.data.env.clone())
         .map_err(|err| anyhow::anyhow!("imitation settings: {err}"))?;
     if learner.counters().updates == start {

@@ -170,6 +170,11 @@ impl Learner {
         &self.replays
     }
 
+    /// Empties every buffer (the counters, networks and optimiser stay).
+    pub fn clear_replays(&mut self) {
+        self.replays.iter_mut().for_each(Replay::clear);
+    }
+
     /// Store an episode in the buffer of its agent count.
     ///
     /// # Panics

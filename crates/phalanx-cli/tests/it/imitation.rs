@@ -169,8 +169,9 @@ fn validating_within_a_round_keeps_the_best_snapshot_and_resumes_exactly() {
 fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    // With a cloning term on the more_data set beside the policy gradient.
     let finetune = r#""rounds": 0, "finetune": {"pools": [{"n_maps": 3, "size": 16}],
-        "agents": [3], "iterations": 5, "instances": 1, "rollouts": 3}"#;
+        "agents": [3], "iterations": 5, "instances": 1, "rollouts": 3, "cloning": 0.5}"#;
     let config = CONFIG.replace(r#""rounds": 2"#, finetune).replace(r#", "finetune": null"#, "");
     std::fs::write(d.join("cfg.json"), config).unwrap();
     let (stdout, _) = check(&train(d, "whole", &[]), 0);
@@ -191,6 +192,8 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let metrics = String::from_utf8(read("whole", "metrics.jsonl")).unwrap();
     let returns = metrics.lines().filter(|l| l.contains("charts/finetune_return")).count();
     assert_eq!(returns, 5, "one return per iteration");
+    let cloned = metrics.lines().filter(|l| l.contains("losses/imitation_loss")).count();
+    assert_eq!(cloned, 5 + 5, "one cloning loss per update, cloning's and fine-tuning's");
 
     // A student fine-tuned alone (no cloning, no expert data), from a policy file, at
     // another dead band of the team vector, which its policy file records.
@@ -204,14 +207,15 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     assert!(stdout.contains("2 of 2"), "{stdout}");
     assert!(!d.join("alone/data-0.bin").exists(), "no expert data for a fine-tuning alone");
     // With a cloning term, the fine-tuning alone makes and clones the expert data too.
-    let data = r#"{"data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4,
-        "seed": 2, "expert": "swarm"}, "#;
-    let cloning =
-        alone.replace(r#""team_deadband": 0.5"#, r#""cloning": 0.5"#).replacen('{', data, 1);
+    let sets = &CONFIG[CONFIG.find(r#""data""#).unwrap()..CONFIG.find(r#""batch_size""#).unwrap()];
+    let cloning = alone.replace(r#""team_deadband": 0.5"#, r#""cloning": 0.5"#);
+    let cloning = cloning.replacen('{', &format!("{{{sets}"), 1);
     std::fs::write(d.join("cloning.json"), cloning).unwrap();
     let args = ["train", "imitation", "--config", "cloning.json", "--out", "cloning"];
     check(&phalanx(d, &args), 0);
-    assert!(read("cloning", "data-0.bin") == read("whole", "data-0.bin"), "not the expert data");
+    for file in ["data-0.bin", "data-0-1.bin"] {
+        assert!(read("cloning", file) == read("whole", file), "{file}: not the expert data");
+    }
     let metrics = String::from_utf8(read("cloning", "metrics.jsonl")).unwrap();
     let cloned = metrics.lines().filter(|l| l.contains("losses/imitation_loss")).count();
     assert_eq!(cloned, 2, "one cloning loss per iteration");
@@ -230,4 +234,7 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let bad = ["train", "imitation", "--config", "bad.json", "--out", "bad"];
     let (_, stderr) = check(&phalanx(d, &bad), 2);
     assert!(stderr.contains("finetune.temperature"), "{stderr}");
+    std::fs::write(d.join("bad.json"), r#"{"finetune": {"cloning": 1}}"#).unwrap();
+    let (_, stderr) = check(&phalanx(d, &bad), 2);
+    assert!(stderr.contains("finetune.cloning_data"), "{stderr}");
 }

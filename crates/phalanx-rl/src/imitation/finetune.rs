@@ -58,12 +58,34 @@ pub struct FinetuneConfig {
     /// band in fine-tuning*, *A dearer step at a narrower band*).
     pub team_deadband: Option<f64>,
     /// Weight of a behaviour-cloning term in every update: the cross-entropy of a batch of
-    /// the run's expert data (cloning data, `more_data` and rounds, drawn as a cloning update
-    /// draws it) added to the policy-gradient loss, so that the fine-tuning keeps what the
-    /// expert taught where its rollouts do not go (the mazes of `more_data` when the pools
-    /// are the paper's). Default 0: none, as the shipped student.
+    /// expert data (`cloning_data`, drawn as a cloning update draws it) added to the
+    /// policy-gradient loss, so that the fine-tuning keeps what the expert taught where its
+    /// rollouts do not go. Default 0: none. Not written when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub cloning: f64,
+    /// The expert data of the cloning term. Not written when the default.
+    #[serde(skip_serializing_if = "CloningData::is_more")]
+    pub cloning_data: CloningData,
+}
+
+/// The expert data the fine-tuning's cloning term draws on ([`FinetuneConfig::cloning_data`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CloningData {
+    /// The `more_data` sets only (the default): what the fine-tuning's own pools do not
+    /// cover (mazes and rooms beside the paper's maps), so that the cloning term keeps it
+    /// without pulling the paper's maps back to the cloned behaviour.
+    #[default]
+    More,
+    /// Everything the run cloned: `data`, `more_data` and the DAgger rounds.
+    All,
+}
+
+impl CloningData {
+    /// Whether this is the default.
+    pub fn is_more(&self) -> bool {
+        *self == CloningData::More
+    }
 }
 
 fn is_zero(value: &f64) -> bool {
@@ -92,6 +114,7 @@ impl Default for FinetuneConfig {
             seed: 1,
             team_deadband: Some(0.6),
             cloning: 0.0,
+            cloning_data: CloningData::More,
         }
     }
 }

@@ -240,6 +240,12 @@ impl ImitationConfig {
         }
         if let Some(finetune) = &self.finetune {
             finetune.check()?;
+            let more = finetune.cloning_data == super::finetune::CloningData::More;
+            if finetune.cloning > 0.0 && more && self.more_data.is_empty() {
+                return Err("finetune.cloning_data: \"more\" (the default) draws on more_data, \
+                            which is empty; give more_data or \"all\""
+                    .into());
+            }
             if let Some(&n) = finetune.agents.iter().find(|&&n| n == 0 || n > net.n_agents_max) {
                 return Err(format!(
                     "finetune.agents: {n} agents do not fit {} slots",
@@ -553,6 +559,10 @@ mod tests {
         assert!(bad(r#"{"finetune": {"rollouts": 1}}"#).contains("2 rollouts"));
         assert!(bad(r#"{"finetune": {"agents": [9]}}"#).contains("finetune.agents"));
         assert!(bad(r#"{"finetune": {"lr": 0}}"#).contains("finetune.lr"));
+        assert!(bad(r#"{"finetune": {"cloning": 1}}"#).contains("which is empty"));
+        let all = r#"{"finetune": {"cloning": 1, "cloning_data": "all"}}"#;
+        assert!(ImitationConfig::from_json(all).is_ok());
+        assert!(bad(r#"{"finetune": {"cloning": -1}}"#).contains("cloning"));
         let none = ImitationConfig::from_json(r#"{"finetune": null}"#).unwrap();
         assert_eq!(none.total_updates(), Some(none.updates));
     }
