@@ -111,10 +111,10 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
     let mut samples = 0;
     let mut best = read_best(dir)?;
-    // A fine-tuning alone (no cloning update, no round) needs no expert data, unless it
-    // clones beside its policy gradient.
     // Round 0's `more_data` sets, the default data of the fine-tuning's cloning term.
     let mut more = Vec::new();
+    // A fine-tuning alone (no cloning update, no round) needs no expert data, unless it
+    // clones beside its policy gradient.
     let cloning = config.round_end(config.rounds) > 0
         || config.finetune.as_ref().is_some_and(|it| it.cloning > 0.0);
     for round in (0..=config.rounds).filter(|_| cloning) {
@@ -316,12 +316,6 @@ fn make_policy(snapshot: &Path, dir: &Path) -> anyhow::Result<()> {
     util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)
 }
 
-/// The fine-tuning on the meta reward after the rounds ([`Finetune`]), up to `stop` updates:
-/// one update per iteration, the iteration being the updates since the rounds' end, so a
-/// resumed run goes on where its checkpoint stopped. Its first update starts a fresh Adam at
-/// its learning rate. Snapshots every `validate_every` updates are validated (logged, not
-/// chosen from); at its end the fine-tuned network, `finetune.bin`, is `policy.bin`.
-#[allow(clippy::too_many_arguments)]
 /// What a fine-tuning runs with.
 struct Finetuning<'a> {
     settings: &'a FinetuneConfig,
@@ -331,6 +325,12 @@ struct Finetuning<'a> {
     dir: &'a Path,
 }
 
+/// The fine-tuning on the meta reward after the rounds ([`Finetune`]), up to `stop` updates:
+/// one update per iteration, the iteration being the updates since the rounds' end, so a
+/// resumed run goes on where its checkpoint stopped. Its first update starts a fresh Adam at
+/// its learning rate. Snapshots every `validate_every` updates are validated (logged, not
+/// chosen from); at its end the fine-tuned network, `finetune.bin`, is `policy.bin`. With a
+/// cloning term on the `more_data` sets, the learner's buffers are emptied and given those.
 fn finetune(
     config: &ImitationConfig,
     run: &Finetuning<'_>,
