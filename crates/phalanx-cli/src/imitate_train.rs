@@ -115,8 +115,7 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let mut more = Vec::new();
     // A fine-tuning alone (no cloning update, no round) needs no expert data, unless it
     // clones beside its policy gradient.
-    let cloning = config.round_end(config.rounds) > 0
-        || config.finetune.as_ref().is_some_and(|it| it.cloning > 0.0);
+    let cloning = config.round_end(config.rounds) > 0 || config.cloning_term();
     for round in (0..=config.rounds).filter(|_| cloning) {
         let end = config.round_end(round);
         let sets = round_data(&config, dir, round, &learner, !args.resume)?;

@@ -426,7 +426,7 @@ def test_the_ppo_example_runs_on_the_vector():
 
 
 STUDENT = """{"data": {"pool": {"n_maps": 3, "size": 16}, "agents": [3], "episodes": 4,
-  "seed": 2, "expert": "swarm"}, "batch_size": 2, "updates": 5, "rounds": 1,
+  "seed": 2, "expert": "swarm"}, "more_data": [], "batch_size": 2, "updates": 5, "rounds": 1,
   "round_episodes": 2, "round_updates": 4, "validation_maps": 1, "validation_max_side": 20,
   "finetune": null}"""
 

@@ -60,11 +60,9 @@ pub struct FinetuneConfig {
     /// Weight of a behaviour-cloning term in every update: the cross-entropy of a batch of
     /// expert data (`cloning_data`, drawn as a cloning update draws it) added to the
     /// policy-gradient loss, so that the fine-tuning keeps what the expert taught where its
-    /// rollouts do not go. Default 0: none. Not written when 0.
-    #[serde(skip_serializing_if = "is_zero")]
+    /// rollouts do not go. Default 1, the shipped student's; 0: none.
     pub cloning: f64,
-    /// The expert data of the cloning term. Not written when the default.
-    #[serde(skip_serializing_if = "CloningData::is_more")]
+    /// The expert data of the cloning term; default `more`.
     pub cloning_data: CloningData,
 }
 
@@ -79,17 +77,6 @@ pub enum CloningData {
     More,
     /// Everything the run cloned: `data`, `more_data` and the DAgger rounds.
     All,
-}
-
-impl CloningData {
-    /// Whether this is the default.
-    pub fn is_more(&self) -> bool {
-        *self == CloningData::More
-    }
-}
-
-fn is_zero(value: &f64) -> bool {
-    *value == 0.0
 }
 
 impl Default for FinetuneConfig {
@@ -113,7 +100,7 @@ impl Default for FinetuneConfig {
             min_spread: 0.02,
             seed: 1,
             team_deadband: Some(0.6),
-            cloning: 0.0,
+            cloning: 1.0,
             cloning_data: CloningData::More,
         }
     }

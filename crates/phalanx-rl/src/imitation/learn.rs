@@ -16,10 +16,10 @@
 use std::path::PathBuf;
 
 use phalanx_env::obs::VECTOR_LEN;
-use phalanx_env::{EnvConfig, LeaderRule, ObsBuffers, PoolConfig, Task, TaskEnv};
+use phalanx_env::{EnvConfig, LeaderRule, MapKind, ObsBuffers, PoolConfig, Task, TaskEnv};
 use serde::{Deserialize, Serialize};
 
-use super::finetune::FinetuneConfig;
+use super::finetune::{CloningData, FinetuneConfig};
 use super::{DataConfig, DataError, Dataset, ExpertChoice, ExpertEpisode, StudentRollouts};
 use crate::learner::{Learner, LearnerConfig};
 use crate::net::QNetConfig;
@@ -38,8 +38,8 @@ pub struct ImitationConfig {
     /// `data`, field by field (`{"pool": {"kind": "maze"}, "expert": "cbs", "seed": 7}`
     /// keeps `data`'s environment and team sizes). Batches take the team sizes in turn and,
     /// within one, episodes uniformly: a set's share of the batches is its share of the
-    /// episodes of its team sizes. Not written when empty.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    /// episodes of its team sizes. Default: the shipped student's [`corridor_sets`] over
+    /// `data`; `[]` for none.
     pub more_data: Vec<DataConfig>,
     /// The student's network (five actions, the goal and place vectors, 8 agent slots).
     pub net: QNetConfig,
@@ -96,14 +96,34 @@ pub struct ImitationConfig {
     pub finetune: Option<FinetuneConfig>,
 }
 
+/// The shipped student's corridor sets over `data` (docs/imitation.md, *Corridors*): 900
+/// episodes of generated 32² mazes and 600 of 64² rooms, labelled by CBS, with `data`'s
+/// environment, noise and node limit and its team sizes among 3, 4 and 5 (none when it has
+/// none of them).
+pub fn corridor_sets(data: &DataConfig) -> Vec<DataConfig> {
+    let agents: Vec<usize> = data.agents.iter().copied().filter(|n| (3..=5).contains(n)).collect();
+    if agents.is_empty() {
+        return Vec::new();
+    }
+    let set = |kind, size, episodes, seed| DataConfig {
+        pool: PoolConfig { kind, size, ..PoolConfig::default() },
+        expert: ExpertChoice::Cbs,
+        agents: agents.clone(),
+        episodes,
+        seed,
+        student: None,
+        ..data.clone()
+    };
+    vec![set(MapKind::Maze, 32, 900, 10), set(MapKind::Rooms, 64, 600, 11)]
+}
+
 impl Default for ImitationConfig {
     fn default() -> ImitationConfig {
+        let data =
+            DataConfig { agents: vec![3, 4, 5, 6, 7, 8], episodes: 1500, ..DataConfig::default() };
         ImitationConfig {
-            data: DataConfig {
-                agents: vec![3, 4, 5, 6, 7, 8],
-                episodes: 1500,
-                ..DataConfig::default()
-            },
+            more_data: corridor_sets(&data),
+            data,
             net: QNetConfig { env_vec: 3 * VECTOR_LEN, ..QNetConfig::default() },
             lr: 1e-3,
             batch_size: 16,
@@ -124,7 +144,6 @@ impl Default for ImitationConfig {
             validation_seed: 1,
             validation_max_side: None,
             finetune: Some(FinetuneConfig::default()),
-            more_data: Vec::new(),
         }
     }
 }
@@ -154,7 +173,11 @@ impl ImitationConfig {
             config.data = over(&ImitationConfig::default().data, fields)
                 .map_err(|err| format!("data: {err}"))?;
         }
-        // Parsed above, so every set is an object.
+        // The default sets follow the data given; the sets given are read over it (parsed
+        // above, so every one is an object).
+        if given.get("more_data").is_none() {
+            config.more_data = corridor_sets(&config.data);
+        }
         let sets = given.get("more_data").and_then(|it| it.as_array()).into_iter().flatten();
         for (k, (set, given)) in config.more_data.iter_mut().zip(sets).enumerate() {
             if let Some(fields) = given.as_object() {
@@ -240,12 +263,6 @@ impl ImitationConfig {
         }
         if let Some(finetune) = &self.finetune {
             finetune.check()?;
-            let more = finetune.cloning_data == super::finetune::CloningData::More;
-            if finetune.cloning > 0.0 && more && self.more_data.is_empty() {
-                return Err("finetune.cloning_data: \"more\" (the default) draws on more_data, \
-                            which is empty; give more_data or \"all\""
-                    .into());
-            }
             if let Some(&n) = finetune.agents.iter().find(|&&n| n == 0 || n > net.n_agents_max) {
                 return Err(format!(
                     "finetune.agents: {n} agents do not fit {} slots",
@@ -254,6 +271,14 @@ impl ImitationConfig {
             }
         }
         self.total_updates().map(|_| ()).ok_or_else(|| "the updates overflow".to_owned())
+    }
+
+    /// Whether the fine-tuning has a cloning term with data to draw on: a `cloning` weight
+    /// above 0, and `more_data` sets or `cloning_data` `all`.
+    pub fn cloning_term(&self) -> bool {
+        self.finetune.as_ref().is_some_and(|it| {
+            it.cloning > 0.0 && (it.cloning_data == CloningData::All || !self.more_data.is_empty())
+        })
     }
 
     /// The learner's settings: Adam at `lr`, batches of `batch_size` sequences cut by
@@ -531,8 +556,26 @@ mod tests {
         assert_eq!(maze, &expected, "the fields not given are data's");
         let round_trip = serde_json::to_string(&config).unwrap();
         assert_eq!(ImitationConfig::from_json(&round_trip).unwrap(), config);
-        let none = serde_json::to_string(&ImitationConfig::default()).unwrap();
-        assert!(!none.contains("more_data"), "not written when empty");
+        let none = ImitationConfig::from_json(r#"{"more_data": []}"#).unwrap();
+        let written = serde_json::to_string(&none).unwrap();
+        assert_eq!(ImitationConfig::from_json(&written).unwrap().more_data, []);
+        // By default, the corridor sets over the data given.
+        let default = ImitationConfig::default();
+        let kinds: Vec<_> = default.more_data.iter().map(|it| (it.pool.kind, it.expert)).collect();
+        assert_eq!(
+            kinds,
+            [(MapKind::Maze, ExpertChoice::Cbs), (MapKind::Rooms, ExpertChoice::Cbs)]
+        );
+        assert!(default.more_data.iter().all(|it| it.agents == [3, 4, 5]));
+        let threes = ImitationConfig::from_json(r#"{"data": {"agents": [3, 8], "seed": 4}}"#);
+        let threes = threes.unwrap();
+        assert_eq!(threes.more_data, corridor_sets(&threes.data));
+        assert!(threes.more_data.iter().all(|it| it.agents == [3] && it.seed != 4));
+        let eights = ImitationConfig::from_json(r#"{"data": {"agents": [8]}}"#).unwrap();
+        assert!(eights.more_data.is_empty() && !eights.cloning_term());
+        assert!(default.cloning_term() && !none.cloning_term());
+        let all = r#"{"more_data": [], "finetune": {"cloning_data": "all"}}"#;
+        assert!(ImitationConfig::from_json(all).unwrap().cloning_term());
         let bad = |text: &str| ImitationConfig::from_json(text).unwrap_err();
         assert!(bad(r#"{"more_data": [3]}"#).contains("expected struct DataConfig at line 1"));
         assert!(bad(r#"{"more_data": [{"sed": 1}]}"#).contains("unknown field `sed`"));
@@ -559,9 +602,6 @@ mod tests {
         assert!(bad(r#"{"finetune": {"rollouts": 1}}"#).contains("2 rollouts"));
         assert!(bad(r#"{"finetune": {"agents": [9]}}"#).contains("finetune.agents"));
         assert!(bad(r#"{"finetune": {"lr": 0}}"#).contains("finetune.lr"));
-        assert!(bad(r#"{"finetune": {"cloning": 1}}"#).contains("which is empty"));
-        let all = r#"{"finetune": {"cloning": 1, "cloning_data": "all"}}"#;
-        assert!(ImitationConfig::from_json(all).is_ok());
         assert!(bad(r#"{"finetune": {"cloning": -1}}"#).contains("cloning"));
         let none = ImitationConfig::from_json(r#"{"finetune": null}"#).unwrap();
         assert_eq!(none.total_updates(), Some(none.updates));
