@@ -118,14 +118,12 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     let cloning = config.round_end(config.rounds) > 0 || config.cloning_term();
     for round in (0..=config.rounds).filter(|_| cloning) {
         let end = config.round_end(round);
-        let sets = round_data(&config, dir, round, &learner, !args.resume)?;
-        for data in &sets {
+        let (data, sets) = round_data(&config, dir, round, &learner, !args.resume)?;
+        for data in data.iter().chain(&sets) {
             samples += add_to_learner(&mut learner, data)
                 .with_context(|| format!("the data of round {round}"))?;
         }
-        if round == 0 {
-            more = sets.into_iter().skip(1).collect();
-        }
+        more = sets;
         let before = learner.counters().updates;
         if before >= end {
             // A round of no updates (DAgger rounds on a student warm-started with `init_from`
@@ -477,15 +475,17 @@ fn read_config(path: &Path) -> anyhow::Result<ImitationConfig> {
         .map_err(|err| anyhow::anyhow!("parsing config {}: {err}", path.display()))
 }
 
-/// Round `round`'s data: round 0's expert data (`data-0.bin`, then `data-0-K.bin` for the
-/// `more_data` sets), or round K's student rollouts labelled by the expert (`data-K.bin`).
+/// Round `round`'s data: round 0's expert data (`data-0.bin`) and its `more_data` sets
+/// (`data-0-K.bin`), or round K's student rollouts labelled by the expert (`data-K.bin`) and
+/// no set. A run without cloning updates or rounds, whose fine-tuning's cloning term draws
+/// on the `more_data` sets only, needs no `data-0.bin`: none is made or read.
 fn round_data(
     config: &ImitationConfig,
     dir: &Path,
     round: u32,
     learner: &Learner,
     fresh: bool,
-) -> anyhow::Result<Vec<Dataset>> {
+) -> anyhow::Result<(Option<Dataset>, Vec<Dataset>)> {
     let path = dir.join(format!("data-{round}.bin"));
     if round > 0 {
         let previous = dir.join(format!("round-{}.bin", round - 1));
@@ -498,13 +498,26 @@ fn round_data(
             path.display()
         );
         let student = learner.policy();
-        return Ok(vec![data_file(&path, expected, Some(&student), fresh, round)?]);
+        let data = data_file(&path, expected, Some(&student), fresh, round)?;
+        return Ok((Some(data), Vec::new()));
     }
-    let more = config.more_data.iter().enumerate();
-    std::iter::once((path, config.data.clone()))
-        .chain(more.map(|(k, set)| (dir.join(format!("data-0-{}.bin", k + 1)), set.clone())))
-        .map(|(path, expected)| data_file(&path, expected, None, fresh, round))
-        .collect()
+    let more_only = config.round_end(config.rounds) == 0
+        && config.finetune.as_ref().is_some_and(|it| it.cloning_data == CloningData::More);
+    let data = if more_only {
+        None
+    } else {
+        Some(data_file(&path, config.data.clone(), None, fresh, round)?)
+    };
+    let sets = config
+        .more_data
+        .iter()
+        .enumerate()
+        .map(|(k, set)| {
+            let path = dir.join(format!("data-0-{}.bin", k + 1));
+            data_file(&path, set.clone(), None, fresh, round)
+        })
+        .collect::<anyhow::Result<_>>()?;
+    Ok((data, sets))
 }
 
 /// A data file: read from `path` when it is there and holds the episodes of `expected`
