@@ -87,8 +87,9 @@ fn every_shipped_configuration_trains_as_it_is() {
     }
 }
 
-/// An imitation run's settings with a few small pool maps, few episodes and one validation
-/// instance per 20² row; the network, the learner and the schedule's fields stay.
+/// An imitation run's settings with a few small pool maps (the `more_data` sets' too, of
+/// their kind), few episodes and one validation instance per 20² row; the network, the
+/// learner and the schedule's fields stay.
 fn shrink_imitation(config: &mut Value) {
     let small_pool = serde_json::json!({"n_maps": 2, "size": 16});
     config["data"]["episodes"] = Value::from(4);
@@ -97,6 +98,15 @@ fn shrink_imitation(config: &mut Value) {
         if let Some(pool) = config.pointer_mut(pool).filter(|it| it.is_object()) {
             for (key, value) in small_pool.as_object().unwrap() {
                 pool[key] = value.clone();
+            }
+        }
+    }
+    if let Some(sets) = config.get_mut("more_data").and_then(Value::as_array_mut) {
+        for set in sets {
+            set["episodes"] = Value::from(2);
+            set["agents"] = Value::from(vec![3, 4]);
+            for (key, value) in small_pool.as_object().unwrap() {
+                set["pool"][key] = value.clone();
             }
         }
     }
