@@ -10,7 +10,10 @@
 //! over their spread: the rollouts of one instance are each other's baseline, so no critic is
 //! needed and the instance's difficulty cancels. One Adam step then raises the
 //! log-probability of every action of the better rollouts and lowers that of the worse
-//! ([`Learner::policy_gradient_update_on`]).
+//! ([`Learner::policy_gradient_update_on`]). With [`FinetuneConfig::cloning`] above 0 the
+//! same step also descends the cloning loss of a batch of expert data (by default the run's
+//! `more_data` sets, the corridors the rollouts never play), so that the fine-tuning keeps
+//! what cloning taught there.
 
 use phalanx_env::{EnvConfig, ObsBuffers, PoolConfig, TaskEnv, TrainPool};
 use rand::{Rng, SeedableRng};
