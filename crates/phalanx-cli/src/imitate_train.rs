@@ -327,7 +327,8 @@ struct Finetuning<'a> {
 /// resumed run goes on where its checkpoint stopped. Its first update starts a fresh Adam at
 /// its learning rate. Snapshots every `validate_every` updates are validated (logged, not
 /// chosen from); at its end the fine-tuned network, `finetune.bin`, is `policy.bin`. With a
-/// cloning term on the `more_data` sets, the learner's buffers are emptied and given those.
+/// cloning term on the `more_data` sets, the learner's buffers are emptied and given those
+/// (unless they hold nothing else: [`ImitationConfig::clones_more_only`]).
 fn finetune(
     config: &ImitationConfig,
     run: &Finetuning<'_>,
@@ -338,9 +339,13 @@ fn finetune(
     let Finetuning { settings: finetune, validation, dir, .. } = *run;
     let (start, total) =
         (config.round_end(config.rounds), config.total_updates().expect("checked"));
-    if finetune.cloning > 0.0 && finetune.cloning_data == CloningData::More {
+    if finetune.cloning > 0.0
+        && finetune.cloning_data == CloningData::More
+        && !config.clones_more_only()
+    {
         // The cloning term draws on these only; the same buffers whether the run goes on
-        // from its cloning or resumes inside the fine-tuning.
+        // from its cloning or resumes inside the fine-tuning. (A run that loaded nothing
+        // else holds them already, in this order.)
         learner.clear_replays();
         for data in run.more {
             add_to_learner(learner, data).context("the more_data of the cloning term")?;
@@ -501,9 +506,7 @@ fn round_data(
         let data = data_file(&path, expected, Some(&student), fresh, round)?;
         return Ok((Some(data), Vec::new()));
     }
-    let more_only = config.round_end(config.rounds) == 0
-        && config.finetune.as_ref().is_some_and(|it| it.cloning_data == CloningData::More);
-    let data = if more_only {
+    let data = if config.clones_more_only() {
         None
     } else {
         Some(data_file(&path, config.data.clone(), None, fresh, round)?)

@@ -273,6 +273,14 @@ impl ImitationConfig {
         self.total_updates().map(|_| ()).ok_or_else(|| "the updates overflow".to_owned())
     }
 
+    /// Whether the run's expert data is its `more_data` sets alone: no cloning update or
+    /// round, and a fine-tuning whose cloning term draws on those sets only (the paper's data
+    /// is then neither made nor read).
+    pub fn clones_more_only(&self) -> bool {
+        self.round_end(self.rounds) == 0
+            && self.finetune.as_ref().is_some_and(|it| it.cloning_data == CloningData::More)
+    }
+
     /// Whether the fine-tuning has a cloning term with data to draw on: a `cloning` weight
     /// above 0, and `more_data` sets or `cloning_data` `all`.
     pub fn cloning_term(&self) -> bool {
