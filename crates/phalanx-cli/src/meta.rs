@@ -94,8 +94,9 @@ const MAX_ROLLOUTS: i64 = 1000;
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct RolloutArgs {
     /// Learned policies: rollouts per instance, the first greedy, the others with random
-    /// actions (--random-prob); the best one counts and the runtime covers all of them
-    /// (1 to 1000).
+    /// actions (--random-prob; the imitation student plays its second at the dead band 0 and
+    /// samples the later ones where a rollout solved the instance); the best one counts and
+    /// the runtime covers all of them (1 to 1000).
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=MAX_ROLLOUTS))]
     rollouts: u32,
     /// Learned policies: probability of a random allowed action per agent and step in the
@@ -150,6 +151,21 @@ pub(crate) struct ActingArgs {
     /// the other policies; docs/imitation.md, *A second band in the rollouts*).
     #[arg(long, value_name = "CELLS|none", value_parser = second_band)]
     second_band: Option<SecondBand>,
+    /// The imitation student: the temperature of its rollouts after the second on an instance
+    /// one of them solved (each action drawn from the softmax of its scores), or `none` for
+    /// greedy ones with random actions (default: the student's 0.5; no effect on the other
+    /// policies; docs/imitation.md, *Sampled rollouts*).
+    #[arg(long, value_name = "T|none", value_parser = rollout_temperature)]
+    rollout_temperature: Option<RolloutTemperature>,
+}
+
+/// A parsed `--rollout-temperature`: `None` for `none`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct RolloutTemperature(Option<f32>);
+
+/// Reads `--rollout-temperature`.
+fn rollout_temperature(text: &str) -> Result<RolloutTemperature, String> {
+    phalanx_rl::keep::parse_rollout_temperature(text).map(RolloutTemperature)
 }
 
 /// A parsed `--second-band`: `None` for `none`.
@@ -185,6 +201,9 @@ impl ActingArgs {
         if let Some(SecondBand(cells)) = self.second_band {
             policy.set_rollout_band(cells).expect("checked by the flag's parser");
         }
+        if let Some(RolloutTemperature(t)) = self.rollout_temperature {
+            policy.set_rollout_temperature(t);
+        }
     }
 }
 
@@ -211,5 +230,10 @@ mod tests {
         assert_eq!(second_band("none"), Ok(SecondBand(None)));
         assert_eq!(second_band("0.5"), Ok(SecondBand(Some(0.5))));
         assert!(second_band("-1").is_err());
+        assert_eq!(rollout_temperature("none"), Ok(RolloutTemperature(None)));
+        assert_eq!(rollout_temperature("0.5"), Ok(RolloutTemperature(Some(0.5))));
+        for bad in ["0", "-1", "NaN", "inf", "x"] {
+            assert!(rollout_temperature(bad).unwrap_err().contains(bad), "{bad}");
+        }
     }
 }

@@ -210,7 +210,9 @@ impl Method {
                 // `imitation:off`, `imitation:VISITS:PROB`: another stall escape than the
                 // student's own; `imitation:band=CELLS`: another dead band of the team
                 // vector; `imitation:second=CELLS|none`: another band of the second rollout
-                // (none: like the others); joined by `+` (`imitation:off+band=0.75`).
+                // (none: like the others); `imitation:temp=T|none`: another temperature of
+                // the later rollouts (none: random actions); joined by `+`
+                // (`imitation:off+band=0.75`).
                 let (mut policy, _) = models::load(sources.imitation, name).map_err(model)?;
                 let bound = |message| MethodError::Bound { spec: spec.to_owned(), message };
                 for part in param.into_iter().flat_map(|param| param.split('+')) {
@@ -221,6 +223,9 @@ impl Method {
                         policy
                             .set_team_deadband(cells(text)?)
                             .map_err(|err| bound(err.to_string()))?;
+                    } else if let Some(text) = part.strip_prefix("temp=") {
+                        let t = phalanx_rl::keep::parse_rollout_temperature(text).map_err(bound)?;
+                        policy.set_rollout_temperature(t);
                     } else if let Some(text) = part.strip_prefix("second=") {
                         let band = if text == "none" { None } else { Some(cells(text)?) };
                         policy.set_rollout_band(band).map_err(|err| bound(err.to_string()))?;
@@ -379,6 +384,17 @@ mod tests {
         assert_eq!(second("imitation:second=none"), (None, keep));
         assert_eq!(second("imitation:second=0.5+off"), (Some(0.5), keep));
         assert_eq!(second("e2e"), (None, phalanx_rl::Keep::Fastest));
+        let temperature = |spec: &str| match Method::named(spec, &Sources::default()) {
+            Ok(Method { solver: Solver::EndToEnd(policy), .. }) => Ok(policy.rollout_temperature()),
+            Ok(_) => panic!("{spec}: a learned policy"),
+            Err(err) => Err(err.to_string()),
+        };
+        assert_eq!(temperature("imitation"), Ok(Some(phalanx_rl::STUDENT_ROLLOUT_TEMPERATURE)));
+        assert_eq!(temperature("imitation:temp=none"), Ok(None));
+        assert_eq!(temperature("imitation:off+temp=2"), Ok(Some(2.0)));
+        assert_eq!(temperature("e2e"), Ok(None));
+        let err = temperature("imitation:temp=0").unwrap_err();
+        assert!(err.contains("temperature \"0\" is not a positive number or none"), "{err}");
         let err = Method::named("imitation:second=-1", &Sources::default()).unwrap_err();
         assert!(err.to_string().contains("dead band -1"), "{err}");
         let err = Method::named("imitation:second=x", &Sources::default()).unwrap_err();

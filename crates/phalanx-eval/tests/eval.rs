@@ -118,7 +118,7 @@ fn cells_csv_and_table_agree_with_the_records() {
 }
 
 #[test]
-fn the_student_plays_its_second_rollout_greedily_at_its_second_band() {
+fn the_student_plays_its_second_rollout_at_its_second_band_and_samples_the_later_ones() {
     use phalanx_eval::Sources;
     use phalanx_rl::Keep;
     let case = Case::new(20, 3, 0.15, None);
@@ -129,7 +129,7 @@ fn the_student_plays_its_second_rollout_greedily_at_its_second_band() {
         let loss = solved.summary.metrics.map(|m| m.formation_loss);
         (solved.plan.unwrap(), loss.unwrap())
     };
-    let mut differ = 0;
+    let (mut differ, mut refined) = (0, 0);
     for index in 0..4 {
         let (instance, _) = case.instance(1, index).unwrap();
         let own = run("imitation", &instance, Rollouts::default());
@@ -143,6 +143,14 @@ fn the_student_plays_its_second_rollout_greedily_at_its_second_band() {
         // Without a second band, the second rollout is a random walk, never the narrow one.
         let random = run("imitation:second=none", &instance, rollouts);
         assert!(random == own || random.0 != narrow.0, "instance {index}");
+        // A third rollout on an instance the first two solved draws from the student's
+        // softmax instead of walking at random: never looser, and tighter somewhere.
+        let three = Rollouts { count: 3, ..rollouts };
+        assert_eq!(&run("imitation:temp=none", &instance, three), tighter, "instance {index}");
+        let sampled = run("imitation", &instance, three);
+        assert!(sampled.1 <= tighter.1, "instance {index}");
+        refined += usize::from(sampled.1 < tighter.1);
     }
     assert!(differ > 0, "the two bands played the same plans");
+    assert!(refined > 0, "no sampled rollout was tighter");
 }

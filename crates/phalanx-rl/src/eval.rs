@@ -118,18 +118,75 @@ pub fn evaluate(
     // The second rollout at the policy's other band, with environments of its own.
     let second = policy.rollout_band().filter(|_| env.team_vector);
     let second = second.map(|cells| EnvConfig { team_deadband: cells, ..env.clone() });
+    let temperature = policy.rollout_temperature();
     let (mut envs, mut second_envs) = (Vec::new(), Vec::new());
-    let mut play =
-        |chunk: &[Instance], caps: &[usize], r: usize, rng: &mut ChaCha8Rng| match &second {
-            Some(second) if r == 1 => {
+    let mut play = |chunk: &[Instance],
+                    caps: &[usize],
+                    solved: &[bool],
+                    r: usize,
+                    rng: &mut ChaCha8Rng| {
+        match (&second, temperature) {
+            (Some(second), _) if r == 1 => {
                 play_low_level(policy, task, second, chunk, caps, 0.0, rng, &mut second_envs)
+            }
+            (_, Some(temperature)) if r > 0 && solved.contains(&true) => {
+                let rollout = Refining { solved, temperature, epsilon: rollouts.epsilon_of(r) };
+                play_refining(policy, task, env, chunk, caps, rollout, rng, &mut envs)
             }
             _ => {
                 let epsilon = rollouts.epsilon_of(r);
                 play_low_level(policy, task, env, chunk, caps, epsilon, rng, &mut envs)
             }
-        };
+        }
+    };
     evaluate_with(&mut play, instances, batch, rollouts, keep, progress)
+}
+
+/// How a rollout with a temperature plays each instance of its chunk ([`play_refining`]).
+struct Refining<'a> {
+    /// Whether an earlier rollout solved the instance.
+    solved: &'a [bool],
+    /// The temperature of the solved ones.
+    temperature: f32,
+    /// The random-action rate of the others.
+    epsilon: f64,
+}
+
+/// A rollout of `chunk` with the policy's rollout temperature ([`Policy::rollout_temperature`]):
+/// the instances an earlier rollout solved are played drawing each action from the softmax of
+/// the scores at the temperature, for a tighter or faster plan than the one kept; the others
+/// greedily with random actions, for a plan at all (the latter first, the random draws from
+/// `rng`).
+#[allow(clippy::too_many_arguments, reason = "one rollout's inputs")]
+fn play_refining(
+    policy: &mut Policy,
+    task: Task,
+    env: &EnvConfig,
+    chunk: &[Instance],
+    caps: &[usize],
+    rollout: Refining<'_>,
+    rng: &mut ChaCha8Rng,
+    envs: &mut Vec<TaskEnv>,
+) -> Result<Vec<EvalEpisode>, EnvError> {
+    let Refining { solved, temperature, epsilon } = rollout;
+    let greedy = policy.sampling();
+    let mut played: Vec<Option<EvalEpisode>> = vec![None; chunk.len()];
+    for refine in [false, true] {
+        let part: Vec<usize> = (0..chunk.len()).filter(|&e| solved[e] == refine).collect();
+        if part.is_empty() {
+            continue;
+        }
+        let instances: Vec<Instance> = part.iter().map(|&e| chunk[e].clone()).collect();
+        let caps: Vec<usize> = part.iter().map(|&e| caps[e]).collect();
+        let (sampling, epsilon) = if refine { (Some(temperature), 0.0) } else { (greedy, epsilon) };
+        policy.set_sampling(sampling);
+        let out = play_low_level(policy, task, env, &instances, &caps, epsilon, rng, envs);
+        policy.set_sampling(greedy);
+        for (&e, episode) in part.iter().zip(out?) {
+            played[e] = Some(episode);
+        }
+    }
+    Ok(played.into_iter().map(|it| it.expect("every instance is in one part")).collect())
 }
 
 /// One rollout of `policy` on every instance at the random-action rate `rollouts.epsilon`
@@ -169,16 +226,24 @@ pub fn evaluate_hierarchy(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<EvalEpisode>, EnvError> {
     let mut episodes = Episodes::new();
-    let mut play = |chunk: &[Instance], caps: &[usize], r: usize, rng: &mut ChaCha8Rng| {
-        play_hierarchy(hierarchy, env, chunk, caps, rollouts.epsilon_of(r), rng, &mut episodes)
-    };
+    let mut play =
+        |chunk: &[Instance], caps: &[usize], _: &[bool], r: usize, rng: &mut ChaCha8Rng| {
+            play_hierarchy(hierarchy, env, chunk, caps, rollouts.epsilon_of(r), rng, &mut episodes)
+        };
     let keep = rollouts.keep.unwrap_or_default();
     evaluate_with(&mut play, instances, batch, rollouts, keep, progress)
 }
 
-/// Rollout `r` of a chunk of instances in lockstep: `(chunk, caps, r, rng)`; episode `e`
-/// stops unsolved after `caps[e]` steps (see [`Tracks::new`]).
-type Play<'a> = dyn FnMut(&[Instance], &[usize], usize, &mut ChaCha8Rng) -> Result<Vec<EvalEpisode>, EnvError>
+/// Rollout `r` of a chunk of instances in lockstep: `(chunk, caps, solved, r, rng)`; episode
+/// `e` stops unsolved after `caps[e]` steps (see [`Tracks::new`]); `solved[e]`: whether an
+/// earlier rollout solved it.
+type Play<'a> = dyn FnMut(
+        &[Instance],
+        &[usize],
+        &[bool],
+        usize,
+        &mut ChaCha8Rng,
+    ) -> Result<Vec<EvalEpisode>, EnvError>
     + 'a;
 
 /// The rollouts of every chunk, keeping each instance's best by `keep`.
@@ -193,14 +258,16 @@ fn evaluate_with(
     let mut res: Vec<EvalEpisode> = Vec::with_capacity(instances.len());
     for (c, chunk) in instances.chunks(batch.max(1)).enumerate() {
         let uncapped = vec![usize::MAX; chunk.len()];
-        let mut best = play(chunk, &uncapped, 0, &mut ChaCha8Rng::seed_from_u64(0))?;
+        let unsolved = vec![false; chunk.len()];
+        let mut best = play(chunk, &uncapped, &unsolved, 0, &mut ChaCha8Rng::seed_from_u64(0))?;
         for r in 1..rollouts.count {
             let mut rng = ChaCha8Rng::seed_from_u64(rollouts.seed);
             rng.set_stream(((c as u64) << 20) | r as u64);
             // A rollout still running after the steps past which it cannot be kept stops
             // there (the random draws of the others do not change).
             let caps: Vec<usize> = best.iter().map(|kept| cap(keep, kept)).collect();
-            let again = play(chunk, &caps, r, &mut rng)?;
+            let solved: Vec<bool> = best.iter().map(|kept| kept.success).collect();
+            let again = play(chunk, &caps, &solved, r, &mut rng)?;
             for (kept, new) in best.iter_mut().zip(again) {
                 let decisions = kept.decisions + new.decisions;
                 if better(&new, kept, keep) {

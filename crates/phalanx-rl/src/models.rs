@@ -18,7 +18,7 @@ use crate::hierarchy::{HierarchyError, LowLevelError};
 use crate::policy_file::{Header, load_policy_any};
 use crate::{
     CheckpointError, Escape, Hierarchy, Keep, LowLevel, MetaInfo, Policy, PolicyRef,
-    STUDENT_ROLLOUT_BAND,
+    STUDENT_ROLLOUT_BAND, STUDENT_ROLLOUT_TEMPERATURE,
 };
 
 /// File names a weights directory may hold, in order of preference.
@@ -136,8 +136,8 @@ fn default_dirs(name: &str) -> Vec<PathBuf> {
 
 /// Loads the policy `name` from `path` (a file or a weights directory) or the shipped model,
 /// on the CPU, with its header and file. The `imitation` student acts with its stall escape
-/// ([`Escape::STUDENT`]) and plays its test-time rollouts as [`Keep::STUDENT`] and
-/// [`STUDENT_ROLLOUT_BAND`] say, wherever it is loaded; the other policies greedily as
+/// ([`Escape::STUDENT`]) and plays its test-time rollouts as [`Keep::STUDENT`],
+/// [`STUDENT_ROLLOUT_BAND`] and [`STUDENT_ROLLOUT_TEMPERATURE`] say, wherever it is loaded; the other policies greedily as
 /// trained, the fastest rollout kept.
 ///
 /// # Errors
@@ -154,6 +154,7 @@ pub fn load_with_header(
         policy.set_escape(Some(Escape::STUDENT));
         policy.set_keep(Keep::STUDENT);
         policy.set_rollout_band(Some(STUDENT_ROLLOUT_BAND)).expect("a valid band");
+        policy.set_rollout_temperature(Some(STUDENT_ROLLOUT_TEMPERATURE));
     }
     Ok((policy, header, file))
 }

@@ -45,6 +45,9 @@ pub struct Policy {
     keep: Keep,
     /// The dead band of its second test-time rollout ([`Policy::rollout_band`]).
     rollout_band: Option<f64>,
+    /// The sampling temperature of its test-time rollouts after the first
+    /// ([`Policy::rollout_temperature`]).
+    rollout_temperature: Option<f32>,
 }
 
 /// Why a saved recurrent state does not fit a policy's network.
@@ -83,6 +86,7 @@ impl Policy {
             sampling: None,
             keep: Keep::Fastest,
             rollout_band: None,
+            rollout_temperature: None,
         }
     }
 
@@ -101,11 +105,12 @@ impl Policy {
     /// # Panics
     /// If the temperature is not a positive number.
     pub fn set_sampling(&mut self, temperature: Option<f32>) {
-        assert!(
-            temperature.is_none_or(|t| t.is_finite() && t > 0.0),
-            "temperature {temperature:?}"
-        );
-        self.sampling = temperature;
+        self.sampling = positive(temperature);
+    }
+
+    /// The temperature its actions are drawn at (`None`: greedy).
+    pub fn sampling(&self) -> Option<f32> {
+        self.sampling
     }
 
     /// The stall escape it acts with.
@@ -160,6 +165,23 @@ impl Policy {
     /// The dead band of its second test-time rollout.
     pub fn rollout_band(&self) -> Option<f64> {
         self.rollout_band
+    }
+
+    /// Plays its test-time rollouts after the first (but the one at [`Policy::rollout_band`])
+    /// on an instance an earlier rollout solved drawing each action from the softmax of its
+    /// masked scores at `temperature`, without random actions; on one none solved yet greedily
+    /// with random actions, as every such rollout without it (`None`, the default; the
+    /// planners' student: [`crate::STUDENT_ROLLOUT_TEMPERATURE`]).
+    ///
+    /// # Panics
+    /// If the temperature is not a positive number.
+    pub fn set_rollout_temperature(&mut self, temperature: Option<f32>) {
+        self.rollout_temperature = positive(temperature);
+    }
+
+    /// The sampling temperature of its test-time rollouts after the first.
+    pub fn rollout_temperature(&self) -> Option<f32> {
+        self.rollout_temperature
     }
 
     /// The network sizes.
@@ -498,6 +520,15 @@ impl<'s> Turns<'s> {
             self.messages[e * msg_dim + agent_idx * n_actions + action] = 1.0;
         }
     }
+}
+
+/// `temperature`, checked to be a positive number (or none).
+///
+/// # Panics
+/// If it is not.
+fn positive(temperature: Option<f32>) -> Option<f32> {
+    assert!(temperature.is_none_or(|t| t.is_finite() && t > 0.0), "temperature {temperature:?}");
+    temperature
 }
 
 /// An allowed action drawn from the softmax of the scores `q` divided by `temperature`.

@@ -269,6 +269,8 @@ fn flags_that_would_print_nonsense_are_refused() {
         ("--keep", "slowest", "one of fastest, tightest, within:BUDGET"),
         ("--second-band", "-1", "0 or more"),
         ("--second-band", "inf", "not a finite number"),
+        ("--rollout-temperature", "0", "not a positive number"),
+        ("--rollout-temperature", "-inf", "not a positive number"),
     ] {
         let flag_value = format!("{flag}={value}");
         let args = ["solve", "i.yaml", "--planner", "imitation", &flag_value];

@@ -123,6 +123,37 @@ fn reset_envs_clears_only_the_restarted_episodes() {
     assert_eq!(rows(&after_reset, 5, 9), rows(&third, 5, 9));
 }
 
+#[test]
+fn with_a_rollout_temperature_solved_instances_are_sampled_and_the_others_searched() {
+    let instances = instances(6);
+    let shipped = || phalanx_rl::models::load(None, "pathfinding").unwrap().0;
+    let own = Rollouts { count: 4, epsilon: 1.0, seed: 1, keep: Some(Keep::Tightest) };
+    let play = |policy: &mut phalanx_rl::Policy, limit: u32| {
+        let env = EnvConfig { step_limit: Some(limit), ..EnvConfig::default() };
+        evaluate(policy, Task::PathFinding, &env, &instances, 3, own, &mut |_| {}).unwrap()
+    };
+    let mut sampled = shipped();
+    sampled.set_rollout_temperature(Some(0.5));
+    // An instance no rollout solved is played with random actions as before (none is solved
+    // in 2 steps: the same rollouts, draw for draw).
+    let unsolved = play(&mut shipped(), 2);
+    assert!(unsolved.iter().all(|it| !it.success));
+    assert_eq!(play(&mut sampled, 2), unsolved);
+    // One the greedy rollout solved is played again drawing from the softmax, not walking at
+    // random (ε = 1): solved again, and the tightest kept is tighter somewhere.
+    let greedy = play(&mut shipped(), 40);
+    assert!(greedy.iter().filter(|it| it.success).count() >= 3, "the shipped policy solves");
+    let refined = play(&mut sampled, 40);
+    assert_eq!(play(&mut sampled, 40), refined, "the same draws");
+    let mut tighter = 0;
+    for (kept, walked) in refined.iter().zip(&greedy) {
+        assert_eq!(kept.success, walked.success);
+        assert!(kept.formation_loss <= walked.formation_loss);
+        tighter += usize::from(kept.formation_loss < walked.formation_loss);
+    }
+    assert!(tighter > 0, "no sampled rollout was tighter");
+}
+
 fn instances(n: usize) -> Vec<Instance> {
     let maps = EvalMaps::new(phalanx_gen::GenConfig {
         size: 16,
