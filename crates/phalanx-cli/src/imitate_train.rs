@@ -123,7 +123,9 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
             samples += add_to_learner(&mut learner, data)
                 .with_context(|| format!("the data of round {round}"))?;
         }
-        more = sets;
+        if round == 0 {
+            more = sets;
+        }
         let before = learner.counters().updates;
         if before >= end {
             // A round of no updates (DAgger rounds on a student warm-started with `init_from`

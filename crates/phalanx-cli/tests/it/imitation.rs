@@ -47,20 +47,27 @@ fn an_imitation_run_stopped_anywhere_resumes_exactly() {
     let validation = std::fs::read_to_string(run("parts").join("validation.jsonl")).unwrap();
     assert_eq!(validation.lines().count(), 3, "{validation}");
     // DAgger rounds on a warm-started student without cloning updates: round 0's student is
-    // the one it starts from, validated and kept, which round 1 rolls out.
+    // the one it starts from, validated and kept, which round 1 rolls out; a fine-tuning
+    // after the round clones round 0's more_data set beside its policy gradient.
     let dagger = CONFIG.replace(
         r#""updates": 5, "rounds": 2"#,
         r#""updates": 0, "rounds": 1, "init_from": "whole/round-2.bin""#,
     );
+    let finetune = r#""finetune": {"pools": [{"n_maps": 3, "size": 16}], "agents": [3],
+        "iterations": 2, "instances": 1, "rollouts": 2, "cloning": 0.5}"#;
+    let dagger = dagger.replace(r#""finetune": null"#, finetune);
     std::fs::write(d.join("dagger.json"), dagger).unwrap();
     let args = ["train", "imitation", "--config", "dagger.json", "--out", "dagger"];
     let (stdout, _) = check(&phalanx(d, &args), 0);
-    assert!(stdout.contains("4 of 4"), "{stdout}");
+    assert!(stdout.contains("6 of 6"), "{stdout}");
+    let metrics = std::fs::read_to_string(run("dagger").join("metrics.jsonl")).unwrap();
+    let cloned = metrics.lines().filter(|l| l.contains("losses/imitation_loss")).count();
+    assert_eq!(cloned, 4 + 2, "one cloning loss per update, the round's and fine-tuning's");
     assert!(
         ["round-0.bin", "data-1.bin", "round-1.bin"].iter().all(|f| run("dagger").join(f).exists())
     );
     let validation = std::fs::read_to_string(run("dagger").join("validation.jsonl")).unwrap();
-    assert_eq!(validation.lines().count(), 2, "{validation}");
+    assert_eq!(validation.lines().count(), 3, "rounds 0 and 1, the fine-tuned: {validation}");
     // A folder without a checkpoint cannot be resumed: the message says what to do.
     let (_, stderr) = check(&train(d, "never", &["--resume"]), 2);
     assert!(
