@@ -130,8 +130,20 @@ pub fn evaluate(
                 play_low_level(policy, task, second, chunk, caps, 0.0, rng, &mut second_envs)
             }
             (_, Some(temperature)) if r > 0 && solved.contains(&true) => {
-                let rollout = Refining { solved, temperature, epsilon: rollouts.epsilon_of(r) };
-                play_refining(policy, task, env, chunk, caps, rollout, rng, &mut envs)
+                let epsilon = rollouts.epsilon_of(r);
+                let envs = &mut envs;
+                play_refining(
+                    policy,
+                    task,
+                    env,
+                    chunk,
+                    caps,
+                    solved,
+                    temperature,
+                    epsilon,
+                    rng,
+                    envs,
+                )
             }
             _ => {
                 let epsilon = rollouts.epsilon_of(r);
@@ -142,21 +154,11 @@ pub fn evaluate(
     evaluate_with(&mut play, instances, batch, rollouts, keep, progress)
 }
 
-/// How a rollout with a temperature plays each instance of its chunk ([`play_refining`]).
-struct Refining<'a> {
-    /// Whether an earlier rollout solved the instance.
-    solved: &'a [bool],
-    /// The temperature of the solved ones.
-    temperature: f32,
-    /// The random-action rate of the others.
-    epsilon: f64,
-}
-
 /// A rollout of `chunk` with the policy's rollout temperature ([`Policy::rollout_temperature`]):
-/// the instances an earlier rollout solved are played drawing each action from the softmax of
-/// the scores at the temperature, for a tighter or faster plan than the one kept; the others
-/// greedily with random actions, for a plan at all (the latter first, the random draws from
-/// `rng`).
+/// the instances an earlier rollout solved (`solved`) are played drawing each action from the
+/// softmax of the scores at `temperature`, for a tighter or faster plan than the one kept; the
+/// others greedily with random actions at `epsilon`, for a plan at all (the latter first, the
+/// random draws from `rng`).
 #[allow(clippy::too_many_arguments, reason = "one rollout's inputs")]
 fn play_refining(
     policy: &mut Policy,
@@ -164,11 +166,12 @@ fn play_refining(
     env: &EnvConfig,
     chunk: &[Instance],
     caps: &[usize],
-    rollout: Refining<'_>,
+    solved: &[bool],
+    temperature: f32,
+    epsilon: f64,
     rng: &mut ChaCha8Rng,
     envs: &mut Vec<TaskEnv>,
 ) -> Result<Vec<EvalEpisode>, EnvError> {
-    let Refining { solved, temperature, epsilon } = rollout;
     let greedy = policy.sampling();
     let mut played: Vec<Option<EvalEpisode>> = vec![None; chunk.len()];
     for refine in [false, true] {

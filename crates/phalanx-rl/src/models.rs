@@ -137,8 +137,8 @@ fn default_dirs(name: &str) -> Vec<PathBuf> {
 /// Loads the policy `name` from `path` (a file or a weights directory) or the shipped model,
 /// on the CPU, with its header and file. The `imitation` student acts with its stall escape
 /// ([`Escape::STUDENT`]) and plays its test-time rollouts as [`Keep::STUDENT`],
-/// [`STUDENT_ROLLOUT_BAND`] and [`STUDENT_ROLLOUT_TEMPERATURE`] say, wherever it is loaded; the other policies greedily as
-/// trained, the fastest rollout kept.
+/// [`STUDENT_ROLLOUT_BAND`] and [`STUDENT_ROLLOUT_TEMPERATURE`] say, wherever it is loaded;
+/// the other policies greedily as trained, the fastest rollout kept.
 ///
 /// # Errors
 /// If no file is found or it cannot be read.
