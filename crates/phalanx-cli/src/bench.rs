@@ -31,7 +31,6 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
-use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_eval::bench::{self, Plan};
 use phalanx_eval::report::{self, Cell};
 use phalanx_eval::runs::{self, Appender};
@@ -339,13 +338,9 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
     let mut appender = util::written(Appender::create(&records_path, &records), &records_path)?;
     let mut all = records;
 
-    let bar = ProgressBar::new(todo as u64);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} runs, {per_sec}, eta {eta} {msg}",
-        )
-        .expect("a valid template")
-        .progress_chars("=> "),
+    let bar = util::styled_bar(
+        todo as u64,
+        "{elapsed_precise} [{bar:30}] {pos}/{len} runs, {per_sec}, eta {eta} {msg}",
     );
     bar.enable_steady_tick(Duration::from_millis(500));
     let ran = bench::run(&cases, &mut methods, &plan, &done, &mut |record| {

@@ -12,7 +12,6 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_core::Instance;
 use phalanx_env::{EnvConfig, EvalMaps, GenConfig, Task};
 use phalanx_rl::{EvalSummary, Hierarchy, Rollouts, evaluate, evaluate_hierarchy};
@@ -199,14 +198,7 @@ pub(crate) fn run(cmd: EvalCmd) -> anyhow::Result<ExitCode> {
     let env = EnvConfig { step_limit: Some(max_steps), ..policy.env_config(task) };
     let instances = instances(&cmd, task, fov)?;
 
-    let bar = ProgressBar::new(instances.len() as u64);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} episodes, eta {eta}",
-        )
-        .expect("a valid template")
-        .progress_chars("=> "),
-    );
+    let bar = util::bar(instances.len() as u64, "episodes");
     let started = Instant::now();
     anyhow::ensure!(cmd.rollouts >= 1, "--rollouts must be at least 1");
     let rollouts = cmd.pick.rollouts(cmd.rollouts, cmd.random_prob, cmd.map.seed);

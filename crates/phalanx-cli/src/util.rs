@@ -2,8 +2,10 @@
 //! printing tables and JSON to stdout.
 
 use std::fs;
-use std::io::Write as _;
+use std::io::{self, IsTerminal as _, Write};
 use std::path::Path;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use phalanx_gen::GenConfig;
@@ -135,8 +137,8 @@ pub(crate) fn seconds(text: &str) -> Result<f64, String> {
 }
 
 /// The duration of `seconds`, a value [`seconds`] accepted.
-pub(crate) fn duration(seconds: f64) -> std::time::Duration {
-    std::time::Duration::try_from_secs_f64(seconds).unwrap_or(std::time::Duration::MAX)
+pub(crate) fn duration(seconds: f64) -> Duration {
+    Duration::try_from_secs_f64(seconds).unwrap_or(Duration::MAX)
 }
 
 /// A flag value in `[lo, hi]` (a finite number).
@@ -301,37 +303,111 @@ pub(crate) fn cut_metrics(path: &Path, env_steps: u64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A progress bar of `len` `unit`s standing at `at`, with the rate per second and the ETA,
-/// ticking twice a second (the training runs' bar).
-pub(crate) fn rate_bar(len: u64, at: u64, unit: &str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(len);
-    let template = format!(
-        "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}, {{rate}} {unit}/s, eta {{eta}} {{msg}}"
-    );
-    let style = indicatif::ProgressStyle::with_template(&template)
+/// How often a bar writes its line when stderr is not a terminal.
+const LOG_EVERY: Duration = Duration::from_secs(60);
+
+/// A bar's draw target off a terminal (a log file, `nohup`, CI): its line as a plain line of
+/// its own at most once every [`LOG_EVERY`], the first after one interval, so that long work
+/// shows its progress in a log and short work writes nothing there.
+struct LogLines {
+    every: Duration,
+    /// When the last line was written, and where lines go (stderr).
+    state: Mutex<(Instant, Box<dyn Write + Send>)>,
+}
+
+impl std::fmt::Debug for LogLines {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LogLines").field("every", &self.every).finish_non_exhaustive()
+    }
+}
+
+impl LogLines {
+    fn new(every: Duration, out: Box<dyn Write + Send>) -> LogLines {
+        LogLines { every, state: Mutex::new((Instant::now(), out)) }
+    }
+
+    fn write(&self, line: &str) -> io::Result<()> {
+        let line = line.trim();
+        let mut state = self.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let (last, out) = &mut *state;
+        if line.is_empty() || last.elapsed() < self.every {
+            return Ok(());
+        }
+        *last = Instant::now();
+        writeln!(out, "{line}")
+    }
+}
+
+impl indicatif::TermLike for LogLines {
+    fn width(&self) -> u16 {
+        100
+    }
+    fn move_cursor_up(&self, _: usize) -> io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_down(&self, _: usize) -> io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_right(&self, _: usize) -> io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_left(&self, _: usize) -> io::Result<()> {
+        Ok(())
+    }
+    fn write_line(&self, line: &str) -> io::Result<()> {
+        self.write(line)
+    }
+    fn write_str(&self, line: &str) -> io::Result<()> {
+        self.write(line)
+    }
+    fn clear_line(&self) -> io::Result<()> {
+        Ok(())
+    }
+    fn flush(&self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+/// A progress bar of `len` drawn with `template` (indicatif's keys, `{rate}` the rate per
+/// second with one decimal): on stderr when it is a terminal, else a plain line a minute
+/// ([`LogLines`]).
+pub(crate) fn styled_bar(len: u64, template: &str) -> indicatif::ProgressBar {
+    let target = if io::stderr().is_terminal() {
+        indicatif::ProgressDrawTarget::stderr()
+    } else {
+        let lines = LogLines::new(LOG_EVERY, Box::new(io::stderr()));
+        indicatif::ProgressDrawTarget::term_like_with_hz(Box::new(lines), 1)
+    };
+    let style = indicatif::ProgressStyle::with_template(template)
         .expect("a valid template")
         .with_key("rate", |state: &indicatif::ProgressState, out: &mut dyn std::fmt::Write| {
             let _ = write!(out, "{:.1}", state.per_sec());
         })
         .progress_chars("=> ");
-    bar.set_style(style);
+    indicatif::ProgressBar::with_draw_target(Some(len), target).with_style(style)
+}
+
+/// A progress bar of `len` `unit`s standing at `at`, with the rate per second and the ETA,
+/// ticking twice a second (the training runs' bar).
+pub(crate) fn rate_bar(len: u64, at: u64, unit: &str) -> indicatif::ProgressBar {
+    let bar = styled_bar(
+        len,
+        &format!(
+            "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}, {{rate}} {unit}/s, eta {{eta}} {{msg}}"
+        ),
+    );
     bar.set_position(at);
     bar.reset_eta();
-    bar.enable_steady_tick(std::time::Duration::from_millis(500));
+    bar.enable_steady_tick(Duration::from_millis(500));
     bar
 }
 
-/// A progress bar of `len` `what` with the ETA (hidden off a terminal).
+/// A progress bar of `len` `what` with the ETA.
 pub(crate) fn bar(len: u64, what: &str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(len);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(&format!(
-            "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {what}, eta {{eta}}"
-        ))
-        .expect("a valid template")
-        .progress_chars("=> "),
-    );
-    bar
+    styled_bar(
+        len,
+        &format!("{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {what}, eta {{eta}}"),
+    )
 }
 
 /// The learner of a training run: restored from `checkpoint` when `resume`, else `fresh()`
@@ -359,4 +435,47 @@ pub(crate) fn learner(
         learner.init_from(path).context("warm start (init_from)")?;
     }
     Ok(learner)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::{Arc, Mutex};
+
+    use indicatif::TermLike as _;
+
+    use super::*;
+
+    /// A writer whose bytes the test reads back.
+    #[derive(Clone, Default)]
+    struct Shared(Arc<Mutex<Vec<u8>>>);
+
+    impl Write for Shared {
+        fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(bytes);
+            Ok(bytes.len())
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn off_a_terminal_a_bar_writes_plain_lines_at_most_once_an_interval() {
+        let out = Shared::default();
+        let text = || String::from_utf8(out.0.lock().unwrap().clone()).unwrap();
+        let lines = LogLines::new(Duration::ZERO, Box::new(out.clone()));
+        lines.clear_line().unwrap();
+        lines.write_str("  00:01:00 [=>  ] 3/10 episodes, eta 2m  ").unwrap();
+        lines.write_line("").unwrap();
+        lines.write_line("00:02:00 [==> ] 6/10 episodes, eta 1m").unwrap();
+        assert_eq!(
+            text(),
+            "00:01:00 [=>  ] 3/10 episodes, eta 2m\n00:02:00 [==> ] 6/10 episodes, eta 1m\n"
+        );
+
+        let out = Shared::default();
+        let lines = LogLines::new(Duration::from_secs(3600), Box::new(out.clone()));
+        lines.write_str("00:00:01 [    ] 0/10 episodes").unwrap();
+        assert!(out.0.lock().unwrap().is_empty(), "nothing before the first interval");
+    }
 }

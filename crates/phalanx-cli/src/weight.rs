@@ -8,7 +8,6 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use burn::tensor::Device;
-use indicatif::{ProgressBar, ProgressStyle};
 use phalanx_rl::policy_file::load_policy_any;
 use phalanx_rl::{WeightConfig, estimate_weight};
 
@@ -64,13 +63,7 @@ pub(crate) fn run(cmd: WeightCmd) -> anyhow::Result<ExitCode> {
         );
     }
     let total = (config.episodes * cmd.agents.len()) as u64;
-    let bar = ProgressBar::new(total).with_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} start states, eta {eta}",
-        )
-        .expect("a valid template")
-        .progress_chars("=> "),
-    );
+    let bar = util::bar(total, "start states");
     let estimates = estimate_weight(&mut policy, &cmd.agents, &config, &mut |done| {
         bar.set_position(done as u64);
     })
