@@ -120,19 +120,14 @@ pub fn evaluate(
     let second = second.map(|cells| EnvConfig { team_deadband: cells, ..env.clone() });
     let temperature = policy.rollout_temperature();
     let (mut envs, mut second_envs) = (Vec::new(), Vec::new());
-    let mut play = |chunk: &[Instance],
-                    caps: &[usize],
-                    solved: &[bool],
-                    r: usize,
-                    rng: &mut ChaCha8Rng| {
-        match (&second, temperature) {
-            (Some(second), _) if r == 1 => {
-                play_low_level(policy, task, second, chunk, caps, 0.0, rng, &mut second_envs)
-            }
-            (_, Some(temperature)) if r > 0 && solved.contains(&true) => {
-                let epsilon = rollouts.epsilon_of(r);
-                let envs = &mut envs;
-                play_refining(
+    let mut play =
+        |chunk: &[Instance], caps: &[usize], solved: &[bool], r: usize, rng: &mut ChaCha8Rng| {
+            let epsilon = rollouts.epsilon_of(r);
+            match (&second, temperature) {
+                (Some(second), _) if r == 1 => {
+                    play_low_level(policy, task, second, chunk, caps, 0.0, rng, &mut second_envs)
+                }
+                (_, Some(temperature)) if r > 0 && solved.contains(&true) => play_refining(
                     policy,
                     task,
                     env,
@@ -142,15 +137,11 @@ pub fn evaluate(
                     temperature,
                     epsilon,
                     rng,
-                    envs,
-                )
+                    &mut envs,
+                ),
+                _ => play_low_level(policy, task, env, chunk, caps, epsilon, rng, &mut envs),
             }
-            _ => {
-                let epsilon = rollouts.epsilon_of(r);
-                play_low_level(policy, task, env, chunk, caps, epsilon, rng, &mut envs)
-            }
-        }
-    };
+        };
     evaluate_with(&mut play, instances, batch, rollouts, keep, progress)
 }
 
