@@ -174,7 +174,7 @@ fn the_shipped_student_runs_decentralised_with_the_dead_band_it_was_trained_with
     // instance the default band of 1.5 plays another plan.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    instance_and_solve(d, "20", "3", "2", "imitation");
+    instance_and_solve(d, "20", "3", "4", "imitation");
     let default = ["solve", "inst.yaml", "--planner", "imitation", "--rollouts", "1"];
     let wide = ["--team-deadband", "1.5", "-o", "wide.yaml"];
     check(&phalanx(d, &[&default[..], &wide[..]].concat()), 0);
