@@ -279,6 +279,12 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         file.as_deref().map(checksum).transpose()
     };
 
+    anyhow::ensure!(
+        !args.resume || args.out.join("bench.json").exists(),
+        "--resume: {} holds no benchmark to continue (no bench.json); run without --resume to \
+         start one",
+        args.out.display()
+    );
     util::written(std::fs::create_dir_all(&args.out), &args.out)?;
     let settings = BenchSettings {
         benchmark: name.to_owned(),

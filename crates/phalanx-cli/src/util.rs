@@ -369,9 +369,28 @@ impl indicatif::TermLike for LogLines {
 }
 
 /// A progress bar of `len` drawn with `template` (indicatif's keys, `{rate}` the rate per
-/// second with one decimal): on stderr when it is a terminal, else a plain line a minute
-/// ([`LogLines`]).
+/// second with one decimal, `{eta}` as [`mean_eta`] computes it): on stderr when it is a
+/// terminal, else a plain line a minute ([`LogLines`]).
 pub(crate) fn styled_bar(len: u64, template: &str) -> indicatif::ProgressBar {
+    styled_bar_from(len, 0, template)
+}
+
+/// The time left at the mean rate since the bar started at `start`: `-` before the first step.
+/// indicatif's own estimate weighs the last seconds; where one step takes longer than that
+/// window (a student's episode relabelled by CBS, a 1024² benchmark run), it decays towards
+/// no progress at all between steps and showed hours for minutes of work.
+fn mean_eta(state: &indicatif::ProgressState, start: u64) -> Option<Duration> {
+    time_left(state.elapsed(), start, state.pos(), state.len()?)
+}
+
+/// `elapsed` for the steps from `start` to `pos`, so much again for each of the steps to `len`.
+fn time_left(elapsed: Duration, start: u64, pos: u64, len: u64) -> Option<Duration> {
+    let done = pos.saturating_sub(start);
+    (done > 0).then(|| elapsed.mul_f64(len.saturating_sub(pos) as f64 / done as f64))
+}
+
+/// [`styled_bar`] for a bar that will be set at `start` (a resumed run's).
+fn styled_bar_from(len: u64, start: u64, template: &str) -> indicatif::ProgressBar {
     let target = if io::stderr().is_terminal() {
         indicatif::ProgressDrawTarget::stderr()
     } else {
@@ -383,6 +402,12 @@ pub(crate) fn styled_bar(len: u64, template: &str) -> indicatif::ProgressBar {
         .with_key("rate", |state: &indicatif::ProgressState, out: &mut dyn std::fmt::Write| {
             let _ = write!(out, "{:.1}", state.per_sec());
         })
+        .with_key("eta", move |state: &indicatif::ProgressState, out: &mut dyn std::fmt::Write| {
+            let _ = match mean_eta(state, start) {
+                Some(eta) => write!(out, "{:#}", indicatif::HumanDuration(eta)),
+                None => write!(out, "-"),
+            };
+        })
         .progress_chars("=> ");
     indicatif::ProgressBar::with_draw_target(Some(len), target).with_style(style)
 }
@@ -390,8 +415,9 @@ pub(crate) fn styled_bar(len: u64, template: &str) -> indicatif::ProgressBar {
 /// A progress bar of `len` `unit`s standing at `at`, with the rate per second and the ETA,
 /// ticking twice a second (the training runs' bar).
 pub(crate) fn rate_bar(len: u64, at: u64, unit: &str) -> indicatif::ProgressBar {
-    let bar = styled_bar(
+    let bar = styled_bar_from(
         len,
+        at,
         &format!(
             "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}, {{rate}} {unit}/s, eta {{eta}} {{msg}}"
         ),
@@ -457,6 +483,18 @@ mod tests {
         fn flush(&mut self) -> io::Result<()> {
             Ok(())
         }
+    }
+
+    #[test]
+    fn the_eta_is_the_time_left_at_the_mean_rate_since_the_bar_started() {
+        let minute = Duration::from_secs(60);
+        // 66 of 300 slow episodes in 109 s: about 6 minutes left, not hours.
+        let left = time_left(Duration::from_secs(109), 0, 66, 300).unwrap();
+        assert_eq!(left.as_secs(), 386);
+        // A resumed run counts only its own steps.
+        assert_eq!(time_left(minute, 100, 110, 200), Some(minute * 9));
+        assert_eq!(time_left(minute, 100, 100, 200), None, "no step yet: no estimate");
+        assert_eq!(time_left(minute, 0, 10, 10), Some(Duration::ZERO));
     }
 
     #[test]

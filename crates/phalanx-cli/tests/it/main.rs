@@ -637,6 +637,11 @@ fn bench_quick_runs_every_row_and_method_and_resumes() {
     // Other settings are refused on resume.
     let (_, stderr) = check(&phalanx(d, &[&args[..], &["--resume", "--seed", "5"]].concat()), 2);
     assert!(stderr.contains("other settings"), "{stderr}");
+    // Nothing to resume: said so, nothing made.
+    let nothing = ["bench", "table2", "--quick", "--out", "none", "--resume"];
+    let (_, stderr) = check(&phalanx(d, &nothing), 2);
+    assert!(stderr.contains("holds no benchmark to continue"), "{stderr}");
+    assert!(!d.join("none").exists());
     // Given instance files, with CBS ablations: the crossing case solved at its optimum
     // with and without the improvements, one run each whatever --maps says.
     let case = Path::new(env!("CARGO_MANIFEST_DIR"))

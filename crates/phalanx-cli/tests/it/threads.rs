@@ -1,6 +1,6 @@
 //! The same seed gives the same results on any thread count: `solve`, `eval`, `sim` and a
 //! short `train` run on one and on two threads, compared with their timings left out; the
-//! imitation data file, compared byte for byte.
+//! imitation data file and an imitation run's files, compared byte for byte.
 
 use std::path::Path;
 use std::process::Output;
@@ -99,6 +99,25 @@ fn results_do_not_depend_on_the_thread_count() {
         v.as_object_mut().unwrap().remove("weights");
     }
     assert_eq!(a, b);
+}
+
+#[test]
+fn an_imitation_run_with_rounds_and_fine_tuning_writes_the_same_files_on_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let finetune = r#""finetune": {"pools": [{"n_maps": 3, "size": 16}], "agents": [3],
+        "iterations": 2, "instances": 2, "rollouts": 3, "cloning": 0.5}"#;
+    let config = super::imitation::CONFIG.replace(r#""finetune": null"#, finetune);
+    std::fs::write(d.join("cfg.json"), config).unwrap();
+    for (threads, out) in [("1", "t1"), ("2", "t2")] {
+        let args = ["train", "imitation", "--config", "cfg.json", "--out", out];
+        check(&on_threads(d, threads, &args), 0);
+    }
+    let files = ["data-0.bin", "data-0-1.bin", "data-1.bin", "round-2.bin", "policy.bin"];
+    for file in files {
+        let read = |run: &str| std::fs::read(d.join(run).join(file)).unwrap();
+        assert!(read("t1") == read("t2"), "{file} differs between one and two threads");
+    }
 }
 
 #[test]
