@@ -279,8 +279,10 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         file.as_deref().map(checksum).transpose()
     };
 
+    let settings_path = args.out.join("bench.json");
+    let records_path = args.out.join("runs.jsonl");
     anyhow::ensure!(
-        !args.resume || args.out.join("bench.json").exists(),
+        !args.resume || settings_path.exists(),
         "--resume: {} holds no benchmark to continue (no bench.json); run without --resume to \
          start one",
         args.out.display()
@@ -307,8 +309,6 @@ fn run_cases(name: &str, args: BenchArgs, cases: Vec<Case>) -> anyhow::Result<Ex
         imitation: baseline_checksum(&args.imitation, "imitation")?,
         cases: cases.iter().map(|c| c.label.clone()).collect(),
     };
-    let settings_path = args.out.join("bench.json");
-    let records_path = args.out.join("runs.jsonl");
     let records = if args.resume {
         let saved = phalanx_io::read_text(&settings_path)?;
         let saved: BenchSettings = serde_json::from_str(&saved)

@@ -389,7 +389,7 @@ fn time_left(elapsed: Duration, start: u64, pos: u64, len: u64) -> Option<Durati
     (done > 0).then(|| elapsed.mul_f64(len.saturating_sub(pos) as f64 / done as f64))
 }
 
-/// [`styled_bar`] for a bar that will be set at `start` (a resumed run's).
+/// [`styled_bar`] standing at `start` (a resumed run's), its ETA counting from there.
 fn styled_bar_from(len: u64, start: u64, template: &str) -> indicatif::ProgressBar {
     let target = if io::stderr().is_terminal() {
         indicatif::ProgressDrawTarget::stderr()
@@ -409,7 +409,9 @@ fn styled_bar_from(len: u64, start: u64, template: &str) -> indicatif::ProgressB
             };
         })
         .progress_chars("=> ");
-    indicatif::ProgressBar::with_draw_target(Some(len), target).with_style(style)
+    let bar = indicatif::ProgressBar::with_draw_target(Some(len), target).with_style(style);
+    bar.set_position(start);
+    bar
 }
 
 /// A progress bar of `len` `unit`s standing at `at`, with the rate per second and the ETA,
@@ -422,7 +424,6 @@ pub(crate) fn rate_bar(len: u64, at: u64, unit: &str) -> indicatif::ProgressBar 
             "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}, {{rate}} {unit}/s, eta {{eta}} {{msg}}"
         ),
     );
-    bar.set_position(at);
     bar.reset_eta();
     bar.enable_steady_tick(Duration::from_millis(500));
     bar
