@@ -69,8 +69,7 @@ impl Validation {
 
 /// Runs `phalanx train imitation`.
 pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
-    let dir = &args.out;
-    let saved = dir.join("config.json");
+    let saved = args.out.join("config.json");
     let mut config = match (&args.config, args.resume) {
         (Some(path), _) => read_config(path)?,
         (None, true) if saved.exists() => read_config(&saved)?,
@@ -79,6 +78,13 @@ pub(crate) fn run(args: &ImitationArgs) -> anyhow::Result<ExitCode> {
     if !args.maps.is_empty() {
         config.data.pool.maps.clone_from(&args.maps);
     }
+    train(config, args)
+}
+
+/// Trains with `config` in `args.out` (`args.config` and `args.maps` are already in it).
+pub(crate) fn train(config: ImitationConfig, args: &ImitationArgs) -> anyhow::Result<ExitCode> {
+    let dir = &args.out;
+    let saved = dir.join("config.json");
     config.check().map_err(|err| anyhow::anyhow!("imitation settings: {err}"))?;
     let device = Device::flex().autodiff();
     let checkpoint = dir.join("checkpoint");

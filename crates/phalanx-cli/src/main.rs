@@ -17,6 +17,7 @@ mod eval;
 #[path = "gen.rs"]
 mod generate;
 mod imitate;
+mod imitate_recipe;
 mod imitate_train;
 mod info;
 mod memory;

@@ -94,9 +94,9 @@ const MAX_ROLLOUTS: i64 = 1000;
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct RolloutArgs {
     /// Learned policies: rollouts per instance, the first greedy, the others with random
-    /// actions (--random-prob; the imitation student plays its second at the dead band 0 and
-    /// samples the later ones where a rollout solved the instance); the best one counts and
-    /// the runtime covers all of them (1 to 1000).
+    /// actions (--random-prob; the imitation student samples them from its own scores where a
+    /// rollout solved the instance); the best one counts and the runtime covers all of them
+    /// (1 to 1000).
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=MAX_ROLLOUTS))]
     rollouts: u32,
     /// Learned policies: probability of a random allowed action per agent and step in the
@@ -141,14 +141,14 @@ pub(crate) struct ActingArgs {
     #[arg(long, value_name = "VISITS:PROB|off", value_parser = escape)]
     escape: Option<EscapeArg>,
     /// The imitation student: the team vector's dead band in cells, 0 or more (default: the
-    /// band it was trained with, from its policy file; the shipped student's 0.6): narrower,
-    /// the agent in front waits for smaller lags, and the team keeps its shape better and
-    /// takes longer (docs/imitation.md). No effect on the other policies.
+    /// student's test-time band, 0.3; it was fine-tuned at 0.6, which its policy file
+    /// records): narrower, the agent in front waits for smaller lags, and the team keeps its
+    /// shape better and takes longer (docs/imitation.md). No effect on the other policies.
     #[arg(long, value_name = "CELLS", value_parser = crate::util::team_deadband)]
     team_deadband: Option<f64>,
     /// The imitation student: the dead band of its second rollout, played greedily, or
-    /// `none` for a second rollout like the others (default: the student's 0; no effect on
-    /// the other policies; docs/imitation.md, *A second band in the rollouts*).
+    /// `none` for a second rollout like the others (default: none; no effect on the other
+    /// policies; docs/imitation.md, *A second band in the rollouts*).
     #[arg(long, value_name = "CELLS|none", value_parser = second_band)]
     second_band: Option<SecondBand>,
     /// The imitation student: the temperature of its rollouts after the second on an instance

@@ -120,10 +120,20 @@ pub(crate) struct TrainCmd {
     /// Table II's large maps' (`meta.wide_share`; default 0.5).
     #[arg(long, value_name = "S", value_parser = util::fraction)]
     wide_share: Option<f64>,
+    /// Imitation: a chain of runs as one command, each stage a run in its own folder under
+    /// DIR started from an earlier stage's files (JSON `{"stages": [{"name", "seed",
+    /// "config"}]}`; docs/imitation.md, *Recipes*; the shipped student's is
+    /// models/imitation/recipe.json). `--resume` skips the finished stages.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["config", "steps", "maps"])]
+    recipe: Option<PathBuf>,
 }
 
 /// Runs `phalanx train`.
 pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        cmd.recipe.is_none() || cmd.task == TaskName::Imitation,
+        "--recipe is for `phalanx train imitation`"
+    );
     if cmd.task == TaskName::Imitation {
         for (flag, given) in [
             ("--weight-multiple", cmd.weight_multiple.is_some()),
@@ -132,6 +142,10 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
             ("--wide-share", cmd.wide_share.is_some()),
         ] {
             anyhow::ensure!(!given, "{flag} is not a setting of `phalanx train imitation`");
+        }
+        if cmd.recipe.is_some() || (cmd.resume && cmd.out.join("recipe.json").exists()) {
+            anyhow::ensure!(cmd.seed == 0, "--seed is a stage's setting in a recipe");
+            return crate::imitate_recipe::run(cmd.recipe.as_deref(), &cmd.out, cmd.resume);
         }
         return crate::imitate_train::run(&crate::imitate_train::ImitationArgs {
             config: cmd.config,

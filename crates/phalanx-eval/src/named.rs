@@ -356,7 +356,7 @@ mod tests {
     }
 
     #[test]
-    fn the_students_dead_band_is_its_training_one_unless_its_name_says_otherwise() {
+    fn the_student_acts_at_its_test_time_band_unless_its_name_says_otherwise() {
         let acting = |spec: &str| match Method::named(spec, &Sources::default()).unwrap().solver {
             Solver::EndToEnd(policy) => {
                 let env = policy.env_config(phalanx_env::Task::Meta);
@@ -365,8 +365,9 @@ mod tests {
             _ => panic!("{spec}: a learned policy"),
         };
         let student = Some(phalanx_rl::Escape::STUDENT);
-        // The shipped student was fine-tuned at 0.6, which its policy file records.
-        assert_eq!(acting("imitation"), (student, 0.6));
+        // The shipped student was fine-tuned at 0.6, which its policy file records; loaded by
+        // its name it acts at the test-time band.
+        assert_eq!(acting("imitation"), (student, phalanx_rl::STUDENT_TEAM_DEADBAND));
         assert_eq!(acting("imitation:band=1.5"), (student, 1.5));
         assert_eq!(acting("imitation:off+band=0"), (None, 0.0));
         let escape = Some(phalanx_rl::Escape { visits: 3, prob: 0.5 });
@@ -374,13 +375,14 @@ mod tests {
     }
 
     #[test]
-    fn the_student_plays_its_second_rollout_at_band_0_unless_its_name_says_otherwise() {
+    fn the_student_plays_a_second_band_only_when_its_name_says_so() {
         let second = |spec: &str| match Method::named(spec, &Sources::default()).unwrap().solver {
             Solver::EndToEnd(policy) => (policy.rollout_band(), policy.keep()),
             _ => panic!("{spec}: a learned policy"),
         };
         let keep = phalanx_rl::Keep::STUDENT;
-        assert_eq!(second("imitation"), (Some(phalanx_rl::STUDENT_ROLLOUT_BAND), keep));
+        assert_eq!(second("imitation"), (None, keep));
+        assert_eq!(second("imitation:second=0"), (Some(0.0), keep));
         assert_eq!(second("imitation:second=none"), (None, keep));
         assert_eq!(second("imitation:second=0.5+off"), (Some(0.5), keep));
         assert_eq!(second("e2e"), (None, phalanx_rl::Keep::Fastest));

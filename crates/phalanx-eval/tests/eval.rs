@@ -118,7 +118,7 @@ fn cells_csv_and_table_agree_with_the_records() {
 }
 
 #[test]
-fn the_student_plays_its_second_rollout_at_its_second_band_and_samples_the_later_ones() {
+fn the_student_plays_a_second_band_when_named_and_samples_the_later_rollouts() {
     use phalanx_eval::Sources;
     use phalanx_rl::Keep;
     let case = Case::new(20, 3, 0.15, None);
@@ -129,25 +129,29 @@ fn the_student_plays_its_second_rollout_at_its_second_band_and_samples_the_later
         let loss = solved.summary.metrics.map(|m| m.formation_loss);
         (solved.plan.unwrap(), loss.unwrap())
     };
+    // The student at the band it was fine-tuned with (0.6), with and without a second
+    // rollout at the band 0 (with 3 agents its own test-time band, 0.3, acts as 0).
+    let (wide, second) = ("imitation:band=0.6", "imitation:band=0.6+second=0");
     let (mut differ, mut refined) = (0, 0);
     for index in 0..4 {
         let (instance, _) = case.instance(1, index).unwrap();
-        let own = run("imitation", &instance, Rollouts::default());
+        let own = run(wide, &instance, Rollouts::default());
         let narrow = run("imitation:band=0", &instance, Rollouts::default());
+        assert_eq!(run("imitation", &instance, Rollouts::default()), narrow, "instance {index}");
         differ += usize::from(own.0 != narrow.0);
         // Two rollouts, the second at the band 0: both greedy, whatever the random-action
         // rate; the tighter of the two counts.
         let rollouts = Rollouts { count: 2, epsilon: 1.0, seed: 5, keep: Some(Keep::Tightest) };
         let tighter = if narrow.1 < own.1 { &narrow } else { &own };
-        assert_eq!(&run("imitation", &instance, rollouts), tighter, "instance {index}");
+        assert_eq!(&run(second, &instance, rollouts), tighter, "instance {index}");
         // Without a second band, the second rollout is a random walk, never the narrow one.
-        let random = run("imitation:second=none", &instance, rollouts);
+        let random = run(&format!("{wide}+temp=none"), &instance, rollouts);
         assert!(random == own || random.0 != narrow.0, "instance {index}");
         // A third rollout on an instance the first two solved draws from the student's
         // softmax instead of walking at random: never looser, and tighter somewhere.
         let three = Rollouts { count: 3, ..rollouts };
-        assert_eq!(&run("imitation:temp=none", &instance, three), tighter, "instance {index}");
-        let sampled = run("imitation", &instance, three);
+        assert_eq!(&run(&format!("{second}+temp=none"), &instance, three), tighter);
+        let sampled = run(second, &instance, three);
         assert!(sampled.1 <= tighter.1, "instance {index}");
         refined += usize::from(sampled.1 < tighter.1);
     }

@@ -59,8 +59,9 @@ impl PyPolicy {
         self.policy.config().env_vec
     }
 
-    /// The team vector's dead band it was trained with, in cells (1.5 unless its file says
-    /// otherwise): the `team_deadband` of the environments it should act in.
+    /// The team vector's dead band it acts at, in cells: the one its file records (1.5 unless
+    /// it says otherwise), or for a student loaded as `imitation` the planners' student's
+    /// test-time band, 0.3: the `team_deadband` of the environments it should act in.
     #[getter]
     fn team_deadband(&self) -> f64 {
         self.policy.team_deadband()

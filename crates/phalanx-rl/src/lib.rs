@@ -69,7 +69,7 @@ pub use hierarchy::{
     Episodes, FormationWeight, Hierarchy, LowLevel, MetaInfo, MetaPolicy, Multiples, PolicyRef,
     ScriptedMeta,
 };
-pub use keep::{Keep, STUDENT_ROLLOUT_BAND, STUDENT_ROLLOUT_TEMPERATURE};
+pub use keep::{Keep, STUDENT_ROLLOUT_TEMPERATURE, STUDENT_TEAM_DEADBAND};
 pub use learner::{
     Counters, EpsilonSchedule, ImitationStats, Learner, LearnerConfig, PolicyGradientStats,
     UpdateStats,

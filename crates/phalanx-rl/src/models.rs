@@ -18,7 +18,7 @@ use crate::hierarchy::{HierarchyError, LowLevelError};
 use crate::policy_file::{Header, load_policy_any};
 use crate::{
     CheckpointError, Escape, Hierarchy, Keep, LowLevel, MetaInfo, Policy, PolicyRef,
-    STUDENT_ROLLOUT_BAND, STUDENT_ROLLOUT_TEMPERATURE,
+    STUDENT_ROLLOUT_TEMPERATURE, STUDENT_TEAM_DEADBAND,
 };
 
 /// File names a weights directory may hold, in order of preference.
@@ -135,9 +135,10 @@ fn default_dirs(name: &str) -> Vec<PathBuf> {
 }
 
 /// Loads the policy `name` from `path` (a file or a weights directory) or the shipped model,
-/// on the CPU, with its header and file. The `imitation` student acts with its stall escape
-/// ([`Escape::STUDENT`]) and plays its test-time rollouts as [`Keep::STUDENT`],
-/// [`STUDENT_ROLLOUT_BAND`] and [`STUDENT_ROLLOUT_TEMPERATURE`] say, wherever it is loaded;
+/// on the CPU, with its header and file. The `imitation` student acts at the dead band
+/// [`STUDENT_TEAM_DEADBAND`] (not the one its file records) with its stall escape
+/// ([`Escape::STUDENT`]) and plays its test-time rollouts as [`Keep::STUDENT`] and
+/// [`STUDENT_ROLLOUT_TEMPERATURE`] say, wherever it is loaded;
 /// the other policies greedily as trained, the fastest rollout kept.
 ///
 /// # Errors
@@ -151,9 +152,9 @@ pub fn load_with_header(
         .map_err(|source| ModelError::Load { name: name.to_owned(), source })?;
     check_kind(&file, &header, name)?;
     if name == "imitation" {
+        policy.set_team_deadband(STUDENT_TEAM_DEADBAND).expect("a valid band");
         policy.set_escape(Some(Escape::STUDENT));
         policy.set_keep(Keep::STUDENT);
-        policy.set_rollout_band(Some(STUDENT_ROLLOUT_BAND)).expect("a valid band");
         policy.set_rollout_temperature(Some(STUDENT_ROLLOUT_TEMPERATURE));
     }
     Ok((policy, header, file))

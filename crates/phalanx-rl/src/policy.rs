@@ -149,7 +149,7 @@ impl Policy {
 
     /// Plays its second test-time rollout greedily at the team vector's dead band `cells`
     /// instead of its own (`None`, the default: at its own, with random actions as every
-    /// rollout after the first; the planners' student: [`crate::STUDENT_ROLLOUT_BAND`]).
+    /// rollout after the first, as the planners' student plays since 2026-12-07).
     /// Only a network that reads the team vector acts differently.
     ///
     /// # Errors

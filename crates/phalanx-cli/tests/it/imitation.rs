@@ -95,9 +95,9 @@ fn an_imitation_run_stopped_anywhere_resumes_exactly() {
 #[test]
 fn the_shipped_students_dead_band_is_a_test_time_flag() {
     // A generated 20² instance on which the band changes the shipped student's play: it
-    // acts with the band it was fine-tuned with, 0.6 cells, which its policy file records
-    // (docs/imitation.md); a wider band lets a follower's lag stand, with no band the agent
-    // in front waits for it and the team is tighter.
+    // acts at its test-time band, 0.3 cells, not the 0.6 it was fine-tuned with and its
+    // policy file records (docs/imitation.md); at 0.6 or a wider band a follower's lag
+    // stands, at 0.3 the agent in front waits for it and the team is tighter.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let inst = ["gen", "--size", "20", "--density", "0.05", "--agents", "3", "--seed", "105"];
@@ -109,11 +109,11 @@ fn the_shipped_students_dead_band_is_a_test_time_flag() {
         let metrics = &summary["metrics"];
         (metrics["makespan"].as_u64().unwrap(), metrics["formation_loss"].as_f64().unwrap())
     };
-    let trained = solve(&[]);
-    assert_eq!(solve(&["--team-deadband", "0.6"]), trained);
+    let default = solve(&[]);
+    assert_eq!(solve(&["--team-deadband", "0.3"]), default);
+    let trained = solve(&["--team-deadband", "0.6"]);
+    assert!(default.1 < trained.1, "at 0.3 {default:?}, at the trained band {trained:?}");
     assert_ne!(solve(&["--team-deadband", "1.5"]), trained, "the band has no effect here");
-    let none = solve(&["--team-deadband", "0"]);
-    assert!(none.1 < trained.1, "no band {none:?}, the trained band {trained:?}");
     for bad in ["--team-deadband=-1", "--team-deadband=nan"] {
         let args = ["solve", "inst.yaml", "--planner", "imitation", bad];
         let (_, stderr) = check(&phalanx(d, &args), 2);
@@ -248,4 +248,63 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     std::fs::write(d.join("bad.json"), r#"{"finetune": {"cloning": -1}}"#).unwrap();
     let (_, stderr) = check(&phalanx(d, &bad), 2);
     assert!(stderr.contains("cloning must be 0 or more"), "{stderr}");
+}
+
+#[test]
+fn a_recipe_is_its_stages_run_by_hand_and_resumes_with_stages_added() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let first = CONFIG.replace(r#""rounds": 2"#, r#""rounds": 0"#);
+    let second = |from: &str| {
+        CONFIG.replace(
+            r#""updates": 5, "rounds": 2"#,
+            &format!(r#""updates": 0, "rounds": 1, "init_from": "{from}""#),
+        )
+    };
+    let stage_a = format!(r#"{{"name": "a", "config": {first}}}"#);
+    let stage_b = format!(r#"{{"name": "b", "seed": 3, "config": {}}}"#, second("a/round-0.bin"));
+    let recipe = |stages: &[&str]| format!(r#"{{"stages": [{}]}}"#, stages.join(", "));
+    std::fs::write(d.join("ab.json"), recipe(&[&stage_a, &stage_b])).unwrap();
+    std::fs::write(d.join("a.json"), recipe(&[&stage_a])).unwrap();
+    let cook = |file: &str, out: &str, extra: &[&str]| {
+        let args = [&["train", "imitation", "--recipe", file, "--out", out][..], extra].concat();
+        phalanx(d, &args)
+    };
+    let (stdout, _) = check(&cook("ab.json", "whole", &[]), 0);
+    assert!(stdout.contains("all stages"), "{stdout}");
+    // The same two runs by hand.
+    std::fs::write(d.join("a-cfg.json"), &first).unwrap();
+    std::fs::write(d.join("b-cfg.json"), second("hand/a/round-0.bin")).unwrap();
+    let by_hand = |cfg: &str, out: &str, seed: &str| {
+        let args = ["train", "imitation", "--config", cfg, "--out", out, "--seed", seed];
+        check(&phalanx(d, &args), 0);
+    };
+    by_hand("a-cfg.json", "hand/a", "0");
+    by_hand("b-cfg.json", "hand/b", "3");
+    let read = |path: &str| std::fs::read(d.join(path)).unwrap();
+    for file in ["a/policy.bin", "b/round-1.bin", "b/data-1.bin", "b/policy.bin"] {
+        assert!(read(&format!("whole/{file}")) == read(&format!("hand/{file}")), "{file} differs");
+    }
+    assert!(read("whole/policy.bin") == read("hand/b/policy.bin"));
+    // Stage b read stage a's expert data rather than making its own.
+    assert!(read("whole/b/data-0.bin") == read("whole/a/data-0.bin"));
+    let finished = std::fs::read_to_string(d.join("whole/stages.jsonl")).unwrap();
+    assert_eq!(finished.lines().count(), 2, "{finished}");
+    // A recipe of the first stage, resumed with the second added, is the whole recipe.
+    check(&cook("a.json", "parts", &[]), 0);
+    assert!(!d.join("parts/b").exists());
+    check(&cook("ab.json", "parts", &["--resume"]), 0);
+    assert!(read("parts/policy.bin") == read("whole/policy.bin"));
+    // Resumed without the recipe: its own, every stage finished.
+    check(&phalanx(d, &["train", "imitation", "--resume", "--out", "parts"]), 0);
+    // A recipe whose finished stages are not its first is refused.
+    std::fs::write(d.join("b.json"), recipe(&[&stage_b.replace("a/round-0.bin", "/x")])).unwrap();
+    let (_, stderr) = check(&cook("b.json", "parts", &["--resume"]), 2);
+    assert!(stderr.contains("stages.jsonl: the finished stages (a, b)"), "{stderr}");
+    let seed_9 = stage_a.replace(r#""name": "a""#, r#""name": "a", "seed": 9"#);
+    std::fs::write(d.join("a9.json"), recipe(&[&seed_9, &stage_b])).unwrap();
+    let (_, stderr) = check(&cook("a9.json", "whole", &["--resume"]), 2);
+    assert!(stderr.contains("first 2 stages are not those"), "{stderr}");
+    let (_, stderr) = check(&cook("a9.json", "parts2", &["--seed", "4"]), 2);
+    assert!(stderr.contains("--seed is a stage's setting"), "{stderr}");
 }

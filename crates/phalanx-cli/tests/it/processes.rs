@@ -168,10 +168,10 @@ fn processes_over_zenoh_plan_what_the_batched_imitation_student_plans() {
 }
 
 #[test]
-fn the_shipped_student_runs_decentralised_with_the_dead_band_it_was_trained_with() {
-    // The shipped student acts with the band its policy file records (0.6); the world
-    // writes the team vector with it, in this process and as a process of its own. On this
-    // instance the default band of 1.5 plays another plan.
+fn the_shipped_student_runs_decentralised_with_its_dead_band() {
+    // The shipped student acts at its test-time band (0.3); the world writes the team
+    // vector with it, in this process and as a process of its own. On this instance the
+    // default band of 1.5 plays another plan.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     instance_and_solve(d, "20", "3", "4", "imitation");

@@ -325,8 +325,8 @@ def parallel_env(**kwargs: Any) -> ParallelEnv:
     ``place_vector``: each observation gains ``"team"``, for the agent in front the vector
     towards its place in the goal layout placed on the team, zeros for the others),
     ``team_deadband=1.5`` (the team vector is zeros while shorter than this many cells; a
-    student acts as trained at its own band, ``load_policy("imitation").team_deadband``, 0.6
-    for the shipped one; narrower, its teams keep their shape better and take longer,
+    student acts at ``load_policy("imitation").team_deadband``, the planners' student's
+    test-time band 0.3; narrower, its teams keep their shape better and take longer,
     docs/imitation.md); the planners' student ``load_policy("imitation")`` reads
     both vectors."""
     return ParallelEnv(**kwargs)

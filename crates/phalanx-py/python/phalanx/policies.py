@@ -43,7 +43,8 @@ class Policy:
 
     @property
     def team_deadband(self) -> float:
-        """The team vector's dead band it was trained with (1.5 unless its file says otherwise):
+        """The team vector's dead band it acts at: its file's (1.5 unless it says otherwise), or
+        for a student loaded as ``"imitation"`` the planners' student's test-time band, 0.3:
         act in ``parallel_env(..., team_deadband=policy.team_deadband)``."""
         return self._net.team_deadband
 

@@ -64,9 +64,10 @@ def solve(
     ``leader[:L]``, ``hrl[:M]``, ``e2e``, ``imitation`` (shipped models; ``rollouts``
     test-time rollouts, of which by default (``keep=None``) the method's own rule picks one:
     the fastest, and for ``imitation`` the tightest within 1.1 × the makespan's lower bound
-    (its second rollout played at the dead band 0, the later ones sampled at the temperature
-    0.5 on an instance a rollout solved; ``imitation:second=none`` plays the second like the
-    others, ``imitation:temp=none`` the later ones greedily with random actions);
+    (every rollout at its test-time dead band 0.3, those after the first sampled at the
+    temperature 0.5 on an instance a rollout solved; ``imitation:second=0`` plays the second
+    greedily at the band 0, ``imitation:temp=none`` the later ones greedily with random
+    actions);
     ``keep="fastest"``, ``"tightest"`` or ``"within:BUDGET"`` for another rule)."""
     if not isinstance(instance, Instance):
         instance = read_instance(instance)
