@@ -42,7 +42,7 @@ impl Keep {
 /// (the shipped student's fine-tuning band, 0.6): the agent in front waits for smaller lags.
 /// On the validation stream, with every rollout after the first sampled, it lowered the
 /// shipped student's mean loss over CBS's from 0.106 (at 0.6, its second rollout greedy at
-/// the band 0) to 0.096 with 8 rollouts (the large rows' by 12–25 %) and from 0.212 to 0.165
+/// the band 0) to 0.096 with 8 rollouts (the large rows' by 12–26 %) and from 0.212 to 0.165
 /// with one, at under 1 % more makespan (docs/imitation.md, *A narrower band at test time*).
 /// With three agents a band of 0.3 acts as 0 (the team vector moves in thirds of a cell),
 /// so the student no longer plays a second rollout at another band.
