@@ -27,7 +27,7 @@ use anyhow::Context as _;
 use phalanx_rl::imitation::learn::ImitationConfig;
 use serde::{Deserialize, Serialize};
 
-use crate::imitate_train::{ImitationArgs, train};
+use crate::imitate_train::{ImitationArgs, is_expert_data, make_policy, train};
 use crate::util;
 
 /// A chain of imitation runs.
@@ -59,6 +59,12 @@ pub(crate) struct Stage {
 fn empty_object() -> serde_json::Value {
     serde_json::Value::Object(serde_json::Map::new())
 }
+
+/// The recipe's copy in its folder, which `--resume` reads without `--recipe`.
+pub(crate) const RECIPE: &str = "recipe.json";
+
+/// The file of the finished stages in a recipe's folder.
+const STAGES: &str = "stages.jsonl";
 
 /// A line of `stages.jsonl`.
 #[derive(Debug, Serialize, Deserialize)]
@@ -125,22 +131,24 @@ impl Stage {
 /// Runs `phalanx train imitation --recipe`: `recipe` (`None` on `--resume`: the folder's own)
 /// in `out`.
 pub(crate) fn run(recipe: Option<&Path>, out: &Path, resume: bool) -> anyhow::Result<ExitCode> {
-    let saved = out.join("recipe.json");
-    let recipe = match recipe {
-        Some(path) => Recipe::read(path)?,
-        None if resume && saved.exists() => Recipe::read(&saved)?,
-        None => anyhow::bail!("--resume without --recipe: {} does not exist", saved.display()),
+    let saved = out.join(RECIPE);
+    let before = if resume && saved.exists() { Some(Recipe::read(&saved)?) } else { None };
+    let recipe = match (recipe, &before) {
+        (Some(path), _) => Recipe::read(path)?,
+        (None, Some(before)) => before.clone(),
+        (None, None) => {
+            anyhow::bail!("--resume without --recipe: {} does not exist", saved.display())
+        }
     };
-    let finished = if resume { read_finished(out)? } else { Vec::new() };
+    let mut finished = if resume { read_finished(out)? } else { Vec::new() };
     anyhow::ensure!(
         finished.len() <= recipe.stages.len()
             && finished.iter().zip(&recipe.stages).all(|(f, s)| f.stage == s.name),
         "{}: the finished stages ({}) are not the recipe's first",
-        out.join("stages.jsonl").display(),
+        out.join(STAGES).display(),
         finished.iter().map(|f| f.stage.as_str()).collect::<Vec<_>>().join(", ")
     );
-    if resume && saved.exists() {
-        let before = Recipe::read(&saved)?;
+    if let Some(before) = &before {
         let kept = finished.len();
         anyhow::ensure!(
             before.stages.get(..kept) == recipe.stages.get(..kept),
@@ -150,15 +158,13 @@ pub(crate) fn run(recipe: Option<&Path>, out: &Path, resume: bool) -> anyhow::Re
     }
     util::written(fs::create_dir_all(out), out)?;
     if !resume {
-        let stages = out.join("stages.jsonl");
+        let stages = out.join(STAGES);
         if stages.exists() {
             util::written(fs::remove_file(&stages), &stages)?;
         }
     }
     let json = serde_json::to_string_pretty(&recipe).expect("a recipe serialises") + "\n";
     util::written(phalanx_io::write_text(&saved, &json), &saved)?;
-    let mut seconds: Vec<(String, f64)> =
-        finished.iter().map(|f| (f.stage.clone(), f.seconds)).collect();
     for (k, stage) in recipe.stages.iter().enumerate().skip(finished.len()) {
         let dir = out.join(&stage.name);
         let mut config = stage.settings().map_err(|err| anyhow::anyhow!("stage {k}: {err}"))?;
@@ -183,19 +189,19 @@ pub(crate) fn run(recipe: Option<&Path>, out: &Path, resume: bool) -> anyhow::Re
             maps: Vec::new(),
         };
         train(config, &args).with_context(|| format!("stage {}", stage.name))?;
-        let took = started.elapsed().as_secs_f64();
-        append_finished(out, &Finished { stage: stage.name.clone(), seconds: took })?;
-        seconds.push((stage.name.clone(), took));
+        let done = Finished { stage: stage.name.clone(), seconds: started.elapsed().as_secs_f64() };
+        append_finished(out, &done)?;
+        finished.push(done);
     }
-    let last = out.join(&recipe.stages[recipe.stages.len() - 1].name).join("policy.bin");
-    let bytes = fs::read(&last).with_context(|| format!("reading {}", last.display()))?;
-    let policy = out.join("policy.bin");
-    util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)?;
-    let total: f64 = seconds.iter().map(|(_, s)| s).sum();
-    let mut rows: Vec<(&str, String)> =
-        seconds.iter().map(|(name, s)| (name.as_str(), format!("{:.1} min", s / 60.0))).collect();
+    let last = &recipe.stages[recipe.stages.len() - 1];
+    make_policy(&out.join(&last.name).join("policy.bin"), out)?;
+    let total: f64 = finished.iter().map(|f| f.seconds).sum();
+    let mut rows: Vec<(&str, String)> = finished
+        .iter()
+        .map(|f| (f.stage.as_str(), format!("{:.1} min", f.seconds / 60.0)))
+        .collect();
     rows.push(("all stages", format!("{:.1} min", total / 60.0)));
-    let policy = policy.display().to_string();
+    let policy = out.join("policy.bin").display().to_string();
     rows.push(("policy.bin", policy));
     util::print(&util::table(&rows))?;
     Ok(ExitCode::SUCCESS)
@@ -209,7 +215,7 @@ fn link_expert_data(earlier: &[PathBuf], dir: &Path) -> anyhow::Result<()> {
             fs::read_dir(stage).with_context(|| format!("reading {}", stage.display()))?;
         let mut names: Vec<String> = entries
             .filter_map(|e| e.ok()?.file_name().into_string().ok())
-            .filter(|n| n == "data-0.bin" || (n.starts_with("data-0-") && n.ends_with(".bin")))
+            .filter(|n| is_expert_data(n))
             .collect();
         names.sort();
         for name in names {
@@ -227,7 +233,7 @@ fn link_expert_data(earlier: &[PathBuf], dir: &Path) -> anyhow::Result<()> {
 
 /// The finished stages of `out` (`stages.jsonl`; none when it is missing).
 fn read_finished(out: &Path) -> anyhow::Result<Vec<Finished>> {
-    let path = out.join("stages.jsonl");
+    let path = out.join(STAGES);
     if !path.exists() {
         return Ok(Vec::new());
     }
@@ -244,7 +250,7 @@ fn read_finished(out: &Path) -> anyhow::Result<Vec<Finished>> {
 
 /// Appends a finished stage to `stages.jsonl`.
 fn append_finished(out: &Path, finished: &Finished) -> anyhow::Result<()> {
-    let path = out.join("stages.jsonl");
+    let path = out.join(STAGES);
     let line = serde_json::to_string(finished).expect("a line serialises");
     let mut file = fs::OpenOptions::new()
         .create(true)

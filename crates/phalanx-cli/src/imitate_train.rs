@@ -315,7 +315,7 @@ fn validate_snapshot(
 }
 
 /// Copies `snapshot` to `DIR/policy.bin` (atomically).
-fn make_policy(snapshot: &Path, dir: &Path) -> anyhow::Result<()> {
+pub(crate) fn make_policy(snapshot: &Path, dir: &Path) -> anyhow::Result<()> {
     let policy = dir.join("policy.bin");
     let bytes = fs::read(snapshot).with_context(|| format!("reading {}", snapshot.display()))?;
     util::written(phalanx_io::write_bytes(&policy, &bytes), &policy)
@@ -470,14 +470,19 @@ fn forget_rounds(dir: &Path) -> anyhow::Result<()> {
         let stale = name == "validation.jsonl"
             || name.strip_prefix("round-").is_some_and(|it| it.ends_with(".bin"))
             || name.strip_prefix("update-").is_some_and(|it| it.ends_with(".bin"))
-            || name
-                .strip_prefix("data-")
-                .is_some_and(|it| it.ends_with(".bin") && it != "0.bin" && !it.starts_with("0-"));
+            || (name.starts_with("data-") && name.ends_with(".bin") && !is_expert_data(name));
         if stale {
             util::written(fs::remove_file(&path), &path)?;
         }
     }
     Ok(())
+}
+
+/// Whether `name` is a run's round-0 expert data file (`data-0.bin`, `data-0-K.bin`): what a
+/// fresh run keeps in its folder and reads again when its own settings made it.
+pub(crate) fn is_expert_data(name: &str) -> bool {
+    name.strip_prefix("data-0")
+        .is_some_and(|it| it == ".bin" || (it.starts_with('-') && it.ends_with(".bin")))
 }
 
 /// Reads a settings file over the defaults.

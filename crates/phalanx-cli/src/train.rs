@@ -143,7 +143,9 @@ pub(crate) fn run(cmd: TrainCmd) -> anyhow::Result<ExitCode> {
         ] {
             anyhow::ensure!(!given, "{flag} is not a setting of `phalanx train imitation`");
         }
-        if cmd.recipe.is_some() || (cmd.resume && cmd.out.join("recipe.json").exists()) {
+        if cmd.recipe.is_some()
+            || (cmd.resume && cmd.out.join(crate::imitate_recipe::RECIPE).exists())
+        {
             anyhow::ensure!(cmd.seed == 0, "--seed is a stage's setting in a recipe");
             return crate::imitate_recipe::run(cmd.recipe.as_deref(), &cmd.out, cmd.resume);
         }
