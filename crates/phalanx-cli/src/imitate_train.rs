@@ -112,6 +112,13 @@ pub(crate) fn train(config: ImitationConfig, args: &ImitationArgs) -> anyhow::Re
     util::written(phalanx_io::write_text(&saved, &json), &saved)?;
 
     let total = config.total_updates().expect("checked");
+    anyhow::ensure!(
+        learner.counters().updates <= total,
+        "{}: the checkpoint is at {} updates, past the {total} of the settings in {}",
+        checkpoint.display(),
+        learner.counters().updates,
+        saved.display()
+    );
     let stop = args.steps.map_or(total, |steps| steps.min(total));
     let mut sink = Metrics::open(dir, args.resume.then(|| learner.counters().updates))?;
     let started = Instant::now();
@@ -180,8 +187,13 @@ pub(crate) fn train(config: ImitationConfig, args: &ImitationArgs) -> anyhow::Re
             break;
         }
     }
+    // A fine-tuning goes on up to `stop`; one whose checkpoint is at its end without its
+    // network (its `iterations` lowered to the checkpoint's: a fresh run of that length
+    // ends there too, every iteration's draws being its own) writes it.
+    let updates = learner.counters().updates;
     if let Some(settings) = &config.finetune
-        && (config.round_end(config.rounds)..stop).contains(&learner.counters().updates)
+        && updates >= config.round_end(config.rounds)
+        && (updates < stop || (updates == total && !dir.join(FINETUNED).exists()))
     {
         let run = Finetuning { settings, more: &more, validation: &validation, dir };
         finetune(&config, &run, &mut learner, stop, &mut sink)?;
@@ -209,6 +221,9 @@ pub(crate) fn train(config: ImitationConfig, args: &ImitationArgs) -> anyhow::Re
 
 /// The training curves beside the metrics.
 const CURVES: &str = "curves.svg";
+
+/// The fine-tuned network, written at the fine-tuning's end.
+const FINETUNED: &str = "finetune.bin";
 
 /// The metrics file: JSON lines `{"name", "step", "value"}`, the step counting updates.
 struct Metrics {
@@ -399,7 +414,7 @@ fn finetune(
         validate,
     )?;
     if learner.counters().updates == total {
-        let snapshot = dir.join("finetune.bin");
+        let snapshot = dir.join(FINETUNED);
         validate_snapshot(learner, &snapshot, validation, round, dir, sink)?;
         make_policy(&snapshot, dir)?;
     }

@@ -204,6 +204,31 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     let cloned = metrics.lines().filter(|l| l.contains("losses/imitation_loss")).count();
     assert_eq!(cloned, 5 + 5, "one cloning loss per update, cloning's and fine-tuning's");
 
+    // A run stopped inside the fine-tuning and resumed with its iterations lowered to the
+    // checkpoint's ends there, as a run of that length does; lowered below it, it is refused.
+    check(&train(d, "cut", &["--steps", "8"]), 0);
+    let three = |text: &str| text.replace(r#""iterations": 5"#, r#""iterations": 3"#);
+    let settings = d.join("cut/config.json");
+    std::fs::write(&settings, three(&std::fs::read_to_string(&settings).unwrap())).unwrap();
+    let (stdout, _) = check(&phalanx(d, &["train", "imitation", "--resume", "--out", "cut"]), 0);
+    assert!(stdout.contains("8 of 8") && stdout.contains("fine-tuned"), "{stdout}");
+    std::fs::write(
+        d.join("cfg3.json"),
+        three(&std::fs::read_to_string(d.join("cfg.json")).unwrap()),
+    )
+    .unwrap();
+    let args = ["train", "imitation", "--config", "cfg3.json", "--out", "three"];
+    check(&phalanx(d, &args), 0);
+    for file in ["finetune.bin", "policy.bin"] {
+        assert!(read("cut", file) == read("three", file), "{file} differs");
+    }
+    let two = std::fs::read_to_string(&settings)
+        .unwrap()
+        .replace(r#""iterations": 3"#, r#""iterations": 2"#);
+    std::fs::write(&settings, two).unwrap();
+    let (_, stderr) = check(&phalanx(d, &["train", "imitation", "--resume", "--out", "cut"]), 2);
+    assert!(stderr.contains("at 8 updates, past the 7"), "{stderr}");
+
     // A student fine-tuned alone (no cloning, no expert data), from a policy file, at
     // another dead band of the team vector, which its policy file records.
     let alone = r#"{"more_data": [], "init_from": "whole/round-0.bin", "updates": 0, "rounds": 0,
