@@ -141,9 +141,9 @@ pub(crate) struct ActingArgs {
     #[arg(long, value_name = "VISITS:PROB|off", value_parser = escape)]
     escape: Option<EscapeArg>,
     /// The imitation student: the team vector's dead band in cells, 0 or more (default: the
-    /// student's test-time band, 0.3; it was fine-tuned at 0.6, which its policy file
-    /// records): narrower, the agent in front waits for smaller lags, and the team keeps its
-    /// shape better and takes longer (docs/imitation.md). No effect on the other policies.
+    /// student's test-time band, 0.3, whatever band its policy file records): narrower, the
+    /// agent in front waits for smaller lags, and the team keeps its shape better and takes
+    /// longer (docs/imitation.md). No effect on the other policies.
     #[arg(long, value_name = "CELLS", value_parser = crate::util::team_deadband)]
     team_deadband: Option<f64>,
     /// The imitation student: the dead band of its second rollout, played greedily, or

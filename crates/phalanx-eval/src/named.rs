@@ -365,8 +365,8 @@ mod tests {
             _ => panic!("{spec}: a learned policy"),
         };
         let student = Some(phalanx_rl::Escape::STUDENT);
-        // The shipped student was fine-tuned at 0.6, which its policy file records; loaded by
-        // its name it acts at the test-time band.
+        // Loaded by its name the shipped student acts at the test-time band, whatever band
+        // its policy file records.
         assert_eq!(acting("imitation"), (student, phalanx_rl::STUDENT_TEAM_DEADBAND));
         assert_eq!(acting("imitation:band=1.5"), (student, 1.5));
         assert_eq!(acting("imitation:off+band=0"), (None, 0.0));

@@ -290,11 +290,11 @@ def test_the_learned_solver_keeps_the_rollout_asked_for(instance_file, tmp_path)
     cli += ["--rollouts", "4", "--json"]
     out = subprocess.run(cli, check=True, capture_output=True, text=True).stdout
     assert student.solved and json.loads(out)["metrics"] == student.metrics
-    # On this instance the sampled rollouts are as fast as the fastest of greedy ones with
-    # random actions, and tighter.
+    # On this instance the sampled rollouts are at least as fast as the fastest of greedy
+    # ones with random actions, and tighter.
     before = "imitation:second=none+temp=none"
     fast = phalanx.solve(instance, before, rollouts=4, keep="fastest")
-    assert fast.metrics["makespan"] == student.metrics["makespan"]
+    assert student.metrics["makespan"] <= fast.metrics["makespan"]
     assert student.metrics["formation_loss"] < fast.metrics["formation_loss"]
 
 

@@ -95,9 +95,9 @@ fn an_imitation_run_stopped_anywhere_resumes_exactly() {
 #[test]
 fn the_shipped_students_dead_band_is_a_test_time_flag() {
     // A generated 20² instance on which the band changes the shipped student's play: it
-    // acts at its test-time band, 0.3 cells, not the 0.6 it was fine-tuned with and its
-    // policy file records (docs/imitation.md); at 0.6 or a wider band a follower's lag
-    // stands, at 0.3 the agent in front waits for it and the team is tighter.
+    // acts at its test-time band, 0.3 cells (docs/imitation.md), not the 0.6 of the
+    // fine-tunings before its last; at 0.6 or a wider band a follower's lag stands, at 0.3
+    // the agent in front waits for it and the team is tighter.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let inst = ["gen", "--size", "20", "--density", "0.05", "--agents", "3", "--seed", "105"];
@@ -111,9 +111,9 @@ fn the_shipped_students_dead_band_is_a_test_time_flag() {
     };
     let default = solve(&[]);
     assert_eq!(solve(&["--team-deadband", "0.3"]), default);
-    let trained = solve(&["--team-deadband", "0.6"]);
-    assert!(default.1 < trained.1, "at 0.3 {default:?}, at the trained band {trained:?}");
-    assert_ne!(solve(&["--team-deadband", "1.5"]), trained, "the band has no effect here");
+    let wider = solve(&["--team-deadband", "0.6"]);
+    assert!(default.1 < wider.1, "at 0.3 {default:?}, at 0.6 {wider:?}");
+    assert_ne!(solve(&["--team-deadband", "1.5"]), wider, "the band has no effect here");
     for bad in ["--team-deadband=-1", "--team-deadband=nan"] {
         let args = ["solve", "inst.yaml", "--planner", "imitation", bad];
         let (_, stderr) = check(&phalanx(d, &args), 2);

@@ -44,7 +44,8 @@ pub struct FinetuneConfig {
     /// The softmax temperature of the rollouts' actions.
     pub temperature: f32,
     /// Cost of a step against a unit of `L_f` for one step (default 2, the shipped
-    /// student's: docs/imitation.md, *A dearer step at a narrower band*).
+    /// student's fine-tunings but its last, at 0.5: docs/imitation.md, *A dearer step at a
+    /// narrower band*, *Fine-tuning on larger maps*).
     pub step_cost: f64,
     /// Cost of not reaching the goals, in units of the return.
     pub fail_cost: f64,
@@ -57,8 +58,9 @@ pub struct FinetuneConfig {
     /// The team vector's dead band of the rollouts' environments, which the fine-tuned
     /// student then acts with and its files record ([`crate::Learner::set_team_deadband`]);
     /// `null`: the data's (`data.env.team_deadband`). The shipped student was cloned at the
-    /// default 1.5 and fine-tuned at 0.6 with `step_cost` 2 (docs/imitation.md, *The dead
-    /// band in fine-tuning*, *A dearer step at a narrower band*).
+    /// default 1.5, fine-tuned at 0.6 with `step_cost` 2 (the defaults; docs/imitation.md,
+    /// *The dead band in fine-tuning*, *A dearer step at a narrower band*), and last at 0.3
+    /// with `step_cost` 0.5 (*Fine-tuning on larger maps*).
     pub team_deadband: Option<f64>,
     /// Weight of a behaviour-cloning term in every update: the cross-entropy of a batch of
     /// expert data (`cloning_data`, drawn as a cloning update draws it) added to the
