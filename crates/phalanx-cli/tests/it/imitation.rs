@@ -207,25 +207,22 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     // A run stopped inside the fine-tuning and resumed with its iterations lowered to the
     // checkpoint's ends there, as a run of that length does; lowered below it, it is refused.
     check(&train(d, "cut", &["--steps", "8"]), 0);
-    let three = |text: &str| text.replace(r#""iterations": 5"#, r#""iterations": 3"#);
+    let iterations = |from: &Path, to: &Path, n: u32| {
+        let text = std::fs::read_to_string(from).unwrap();
+        let text = text.replace(r#""iterations": 5"#, &format!(r#""iterations": {n}"#));
+        std::fs::write(to, text).unwrap();
+    };
     let settings = d.join("cut/config.json");
-    std::fs::write(&settings, three(&std::fs::read_to_string(&settings).unwrap())).unwrap();
+    iterations(&settings, &settings, 3);
     let (stdout, _) = check(&phalanx(d, &["train", "imitation", "--resume", "--out", "cut"]), 0);
     assert!(stdout.contains("8 of 8") && stdout.contains("fine-tuned"), "{stdout}");
-    std::fs::write(
-        d.join("cfg3.json"),
-        three(&std::fs::read_to_string(d.join("cfg.json")).unwrap()),
-    )
-    .unwrap();
+    iterations(&d.join("cfg.json"), &d.join("cfg3.json"), 3);
     let args = ["train", "imitation", "--config", "cfg3.json", "--out", "three"];
     check(&phalanx(d, &args), 0);
     for file in ["finetune.bin", "policy.bin"] {
         assert!(read("cut", file) == read("three", file), "{file} differs");
     }
-    let two = std::fs::read_to_string(&settings)
-        .unwrap()
-        .replace(r#""iterations": 3"#, r#""iterations": 2"#);
-    std::fs::write(&settings, two).unwrap();
+    iterations(&d.join("cfg.json"), &settings, 2);
     let (_, stderr) = check(&phalanx(d, &["train", "imitation", "--resume", "--out", "cut"]), 2);
     assert!(stderr.contains("at 8 updates, past the 7"), "{stderr}");
 
