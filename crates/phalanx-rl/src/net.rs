@@ -549,8 +549,8 @@ impl LstmLayer {
         let projected = self.input.forward(seq); // [batch, time, 4H]
         let (mut cell, mut hidden) = state; // [batch, H] each
         let mut outputs = Vec::with_capacity(time);
-        for t in 0..time {
-            let x_t = projected.clone().narrow(1, t, 1).reshape([batch, 4 * d_hidden]); // [batch, 4H]
+        for x_t in time_steps(projected) {
+            let x_t = x_t.reshape([batch, 4 * d_hidden]); // [batch, 4H]
             let gates = x_t + self.recurrent.forward(hidden); // [batch, 4H]
             let mut parts = gates.chunk(4, 1).into_iter(); // 4 × [batch, H]
             let mut next = || parts.next().expect("four gates");
@@ -566,6 +566,29 @@ impl LstmLayer {
         };
         (out, (cell, hidden))
     }
+}
+
+/// The time steps of `seq`, in order, each `[batch, 1, D]`, cut by halving the sequence
+/// again and again. The gradient of a cut is the cut tensor's shape in zeros with the cut's
+/// gradient written in (burn's `slice` backward), so cutting one step at a time from the
+/// whole sequence costs `time²` zeroed rows in every backward pass (on 128² maps, episodes
+/// of 300 steps, most of a fine-tuning update), halving `2 · time · log₂ time`. The values and
+/// gradients are the same: every row of a gradient is its one step's, the others' zeros
+/// added to it (docs/learning.md, *The recurrent layer's time steps*).
+fn time_steps(seq: Tensor<3>) -> Vec<Tensor<3>> {
+    fn cut(seq: Tensor<3>, steps: &mut Vec<Tensor<3>>) {
+        let time = seq.dims()[1];
+        if time == 1 {
+            steps.push(seq);
+        } else if time > 1 {
+            let half = time / 2;
+            cut(seq.clone().narrow(1, 0, half), steps);
+            cut(seq.narrow(1, half, time - half), steps);
+        }
+    }
+    let mut steps = Vec::with_capacity(seq.dims()[1]);
+    cut(seq, &mut steps);
+    steps
 }
 
 /// Dense layer with Uniform(±1/√fan_in) weights and biases (PyTorch's default).
@@ -631,4 +654,42 @@ pub(crate) fn tensor3(data: Vec<f32>, shape: [usize; 3], device: &Device) -> Ten
 /// A float tensor's values, row-major.
 pub(crate) fn to_vec<const D: usize>(tensor: Tensor<D>) -> Vec<f32> {
     tensor.into_data().try_to_vec::<f32>().expect("float tensor data")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The halved cuts are the sequence's steps in order, and a loss over them has the
+    /// gradient the one-step-at-a-time cuts give, to the bit.
+    #[test]
+    fn time_steps_are_the_steps_in_order_with_the_same_gradient() {
+        let device = Device::flex().autodiff();
+        for time in [0_usize, 1, 2, 7, 64] {
+            let values: Vec<f32> = (0..2 * time * 3).map(|i| (i as f32 * 0.37).sin()).collect();
+            let seq = || {
+                Tensor::<3>::from_data(TensorData::new(values.clone(), [2, time, 3]), &device)
+                    .require_grad()
+            };
+            let weight = |t: usize| t as f32 * 0.25 - 1.0;
+            let loss = |steps: Vec<Tensor<3>>| {
+                let terms = steps.into_iter().enumerate();
+                terms.map(|(t, step)| (step * weight(t)).tanh().sum()).reduce(|a, b| a + b)
+            };
+            let (halved, one_by_one) = (seq(), seq());
+            let steps = time_steps(halved.clone());
+            assert_eq!(steps.len(), time);
+            for (t, step) in steps.iter().enumerate() {
+                let expected = one_by_one.clone().narrow(1, t, 1);
+                assert_eq!(to_vec(step.clone()), to_vec(expected), "step {t} of {time}");
+            }
+            let Some(loss_halved) = loss(steps) else { continue };
+            let cuts = (0..time).map(|t| one_by_one.clone().narrow(1, t, 1)).collect();
+            let loss_one = loss(cuts).expect("as many steps");
+            let grad = |loss: Tensor<1>, of: &Tensor<3>| {
+                to_vec(of.grad(&loss.backward()).expect("tracked"))
+            };
+            assert_eq!(grad(loss_halved, &halved), grad(loss_one, &one_by_one), "time {time}");
+        }
+    }
 }
