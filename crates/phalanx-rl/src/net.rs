@@ -572,9 +572,9 @@ impl LstmLayer {
 /// again and again. The gradient of a cut is the cut tensor's shape in zeros with the cut's
 /// gradient written in (burn's `slice` backward), so cutting one step at a time from the
 /// whole sequence costs `time²` zeroed rows in every backward pass (on 128² maps, episodes
-/// of 300 steps, most of a fine-tuning update), halving `2 · time · log₂ time`. The values and
-/// gradients are the same: every row of a gradient is its one step's, the others' zeros
-/// added to it (docs/learning.md, *The recurrent layer's time steps*).
+/// of 300 steps, most of a fine-tuning update), and halving `2 · time · log₂ time`. The
+/// values and gradients are the same: every row of a gradient is its one step's, the
+/// others' zeros added to it (docs/learning.md, *The recurrent layer's time steps*).
 fn time_steps(seq: Tensor<3>) -> Vec<Tensor<3>> {
     fn cut(seq: Tensor<3>, steps: &mut Vec<Tensor<3>>) {
         let time = seq.dims()[1];
