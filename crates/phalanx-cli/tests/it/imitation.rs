@@ -209,8 +209,9 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     check(&train(d, "cut", &["--steps", "8"]), 0);
     let iterations = |from: &Path, to: &Path, n: u32| {
         let text = std::fs::read_to_string(from).unwrap();
-        let text = text.replace(r#""iterations": 5"#, &format!(r#""iterations": {n}"#));
-        std::fs::write(to, text).unwrap();
+        let mut settings: serde_json::Value = serde_json::from_str(&text).unwrap();
+        settings["finetune"]["iterations"] = n.into();
+        std::fs::write(to, serde_json::to_string_pretty(&settings).unwrap()).unwrap();
     };
     let settings = d.join("cut/config.json");
     iterations(&settings, &settings, 3);
@@ -222,7 +223,7 @@ fn a_fine_tuning_stopped_anywhere_resumes_exactly_and_is_the_policy() {
     for file in ["finetune.bin", "policy.bin"] {
         assert!(read("cut", file) == read("three", file), "{file} differs");
     }
-    iterations(&d.join("cfg.json"), &settings, 2);
+    iterations(&settings, &settings, 2);
     let (_, stderr) = check(&phalanx(d, &["train", "imitation", "--resume", "--out", "cut"]), 2);
     assert!(stderr.contains("at 8 updates, past the 7"), "{stderr}");
 
