@@ -288,4 +288,12 @@ mod tests {
         assert!(parse(r#"{"stages": [{"name": "a", "config": 3}]}"#).contains("not a JSON object"));
         assert!(parse("{\n\"stages\": [}").contains("line 2"));
     }
+
+    #[test]
+    fn the_shipped_recipe_passes_its_checks() {
+        let shipped =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/imitation/recipe.json");
+        let recipe = Recipe::read(&shipped).unwrap_or_else(|e| panic!("{e:#}"));
+        assert_eq!(recipe.stages.len(), 7);
+    }
 }

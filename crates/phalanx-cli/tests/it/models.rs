@@ -34,7 +34,7 @@ fn read(path: &Path) -> String {
 }
 
 /// Whether every field of `given` is in `saved` with the same value (objects field by
-/// field), but those named in `except`.
+/// field, arrays of the same length item by item), but those named in `except`.
 fn kept(given: &Value, saved: &Value, except: &[&str], at: &str) -> Result<(), String> {
     match (given, saved) {
         (Value::Object(given), Value::Object(saved)) => {
@@ -44,6 +44,11 @@ fn kept(given: &Value, saved: &Value, except: &[&str], at: &str) -> Result<(), S
             }
             Ok(())
         }
+        (Value::Array(given), Value::Array(saved)) if given.len() == saved.len() => given
+            .iter()
+            .zip(saved)
+            .enumerate()
+            .try_for_each(|(k, (given, saved))| kept(given, saved, &[], &format!("{at}[{k}]"))),
         _ if given == saved => Ok(()),
         _ => Err(format!("{at}: {given} became {saved}")),
     }
@@ -114,4 +119,23 @@ fn shrink_imitation(config: &mut Value) {
     config["batch_size"] = Value::from(2);
     config["validation_maps"] = Value::from(1);
     config["validation_max_side"] = Value::from(20);
+}
+
+/// The shipped student's recipe (`models/imitation/recipe.json`) is the command its
+/// `model.json` names, and its last stage's settings are the model's configuration (but
+/// `init_from`, a folder of the recipe's run); the recipe's own checks are a unit test.
+#[test]
+fn the_shipped_recipe_ends_in_the_models_configuration() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/imitation");
+    let recipe: Value = serde_json::from_str(&read(&dir.join("recipe.json"))).unwrap();
+    let model: Value = serde_json::from_str(&read(&dir.join("model.json"))).unwrap();
+    let command = model["command"].as_str().unwrap();
+    assert!(command.contains("--recipe models/imitation/recipe.json"), "{command}");
+    let last = recipe["stages"].as_array().and_then(|s| s.last()).expect("a stage");
+    let name = last["name"].as_str().unwrap();
+    let from = last["config"]["init_from"].as_str().unwrap();
+    assert_eq!(model["config"]["init_from"], format!("runs/imitation/{from}").as_str());
+    if let Err(why) = kept(&last["config"], &model["config"], &["init_from"], name) {
+        panic!("model.json's config is not the recipe's last stage: {why}");
+    }
 }
